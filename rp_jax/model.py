@@ -1,0 +1,135 @@
+"""The repeatability predictor (RP) network of Sec. III-B, as pure Flax Linen modules.
+
+Input per interest point: its 64x64x3 patch, its normalised image coordinates (R^2) and the
+encoded capture time (R^d, see ``time_encoding``). The paper gives the fully connected part
+exactly: fc1 (64, relu), fc2 (32, relu), fc3 (64, relu), fc4 (32, relu), fc5 (64, relu),
+generalized-mean (GeM) pooling of the outputs z1, z2, z3 of fc1, fc3, fc5
+
+    z = [ (z1^p + z2^p + z3^p) / 3 ]^(1/p),  p learnable,
+
+then fc6 (D, sigmoid) with D = T, the number of timestamps. The paper does not give the
+patch encoder; ours is designed for a CPU (see ``PatchEncoder``).
+
+``params`` is a plain pytree and ``RepeatabilityPredictor.apply`` a pure function, so the
+model composes with ``jax.jit``, ``jax.vmap`` and ``jax.grad`` in users' own code.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+__all__ = ["gem_pool", "GeM", "PatchEncoder", "RepeatabilityPredictor", "space_to_depth"]
+
+GEM_EPS = 1e-6
+
+
+def gem_pool(zs: jnp.ndarray, p: jnp.ndarray | float, axis: int = 0) -> jnp.ndarray:
+    """Generalized mean over ``axis``: (mean z^p)^(1/p) (Radenovic et al.; Sec. III-B).
+
+    p = 1 is the arithmetic mean; p -> inf tends to the maximum. Inputs are clamped at a
+    small epsilon because z^p needs z > 0 (the pooled layers are ReLU outputs).
+    """
+    zs = jnp.maximum(zs, GEM_EPS)
+    # Computed relative to the max for numerical range at large p: max * (mean (z/max)^p)^(1/p).
+    zmax = jnp.max(zs, axis=axis, keepdims=True)
+    mean = jnp.mean((zs / zmax) ** p, axis=axis)
+    return jnp.squeeze(zmax, axis) * mean ** (1.0 / p)
+
+
+class GeM(nn.Module):
+    """GeM pooling over a stack of feature vectors with a learnable exponent p >= 1.
+
+    p is kept valid during training by construction: p = 1 + softplus(rho), rho free.
+    """
+
+    init_p: float = 3.0
+
+    @nn.compact
+    def __call__(self, zs: jnp.ndarray) -> jnp.ndarray:
+        if self.init_p <= 1.0:
+            raise ValueError(f"GeM init_p must be > 1, got {self.init_p}")
+        rho0 = jnp.log(jnp.expm1(self.init_p - 1.0))  # softplus^-1(init_p - 1)
+        rho = self.param("rho", lambda _: jnp.asarray(rho0, jnp.float32))
+        return gem_pool(zs, self.p_from(rho), axis=0)
+
+    @staticmethod
+    def p_from(rho: jnp.ndarray) -> jnp.ndarray:
+        return 1.0 + jax.nn.softplus(rho)
+
+
+def space_to_depth(x: jnp.ndarray, block: int) -> jnp.ndarray:
+    """[B, H, W, C] -> [B, H/b, W/b, b*b*C], a reshape (no arithmetic)."""
+    b, h, w, c = x.shape
+    x = x.reshape(b, h // block, block, w // block, block, c)
+    return x.transpose(0, 1, 3, 2, 4, 5).reshape(b, h // block, w // block, block * block * c)
+
+
+class PatchEncoder(nn.Module):
+    """A small CNN for the 64x64x3 patch, shaped for CPU throughput.
+
+    The strided first layer of a usual CNN is replaced by a 4x4 space-to-depth (a free
+    reshape to 16x16x48), so every convolution runs on small spatial maps with channel
+    counts that are multiples of 16 (vector-friendly); the last map (4x4) is flattened, not
+    averaged, so the encoder keeps *where* in the patch a structure lies (the keypoint is at
+    the centre).
+    """
+
+    channels: Sequence[int] = (64, 64, 128)
+    features: int = 128
+    dtype: jnp.dtype = jnp.float32
+
+    @nn.compact
+    def __call__(self, patches: jnp.ndarray) -> jnp.ndarray:
+        x = patches.astype(self.dtype)
+        x = space_to_depth(x, 4)  # 64x64x3 -> 16x16x48
+        for i, ch in enumerate(self.channels):
+            stride = 1 if i == 0 else 2
+            x = nn.Conv(ch, (3, 3), strides=(stride, stride), padding="SAME", dtype=self.dtype,
+                        name=f"conv{i + 1}")(x)
+            x = nn.relu(x)
+        x = x.reshape(x.shape[0], -1)
+        return nn.relu(nn.Dense(self.features, dtype=self.dtype, name="proj")(x))
+
+
+class RepeatabilityPredictor(nn.Module):
+    """RP of Sec. III-B: patch, coordinates and time -> T repeatability scores in (0, 1).
+
+    Attributes:
+      num_timestamps: D = T, the length of the repeatability vector.
+      encoder_channels, encoder_features: the patch encoder's size.
+      gem_init_p: initial GeM exponent.
+      dtype: computation dtype of the patch encoder (float32 or bfloat16); the fc layers and
+        the output are float32.
+    """
+
+    num_timestamps: int
+    encoder_channels: Sequence[int] = (64, 64, 128)
+    encoder_features: int = 128
+    gem_init_p: float = 3.0
+    dtype: jnp.dtype = jnp.float32
+
+    @nn.compact
+    def __call__(self, patches: jnp.ndarray, xy: jnp.ndarray, time: jnp.ndarray) -> jnp.ndarray:
+        """Args: patches [B,64,64,3] float in [0,1] (or centred), xy [B,2] in [0,1], time [B,d].
+
+        Returns: [B, T] float32 repeatability scores.
+        """
+        feat = PatchEncoder(self.encoder_channels, self.encoder_features, self.dtype,
+                            name="patch_encoder")(patches).astype(jnp.float32)
+        h = jnp.concatenate([feat, xy.astype(jnp.float32), time.astype(jnp.float32)], axis=-1)
+        z1 = nn.relu(nn.Dense(64, name="fc1")(h))
+        h = nn.relu(nn.Dense(32, name="fc2")(z1))
+        z2 = nn.relu(nn.Dense(64, name="fc3")(h))
+        h = nn.relu(nn.Dense(32, name="fc4")(z2))
+        z3 = nn.relu(nn.Dense(64, name="fc5")(h))
+        z = GeM(self.gem_init_p, name="gem")(jnp.stack([z1, z2, z3], axis=0))
+        return nn.sigmoid(nn.Dense(self.num_timestamps, name="fc6")(z))
+
+
+def preprocess_patches(patches: jnp.ndarray) -> jnp.ndarray:
+    """uint8 [0, 255] patches -> float32 centred at 0 (what the network sees)."""
+    return patches.astype(jnp.float32) / 255.0 - 0.5

@@ -1,0 +1,316 @@
+"""Training of the repeatability predictor (Sec. III-B, III-C): optax, orbax, data parallel.
+
+``train_and_evaluate(config, workdir, train_source, val_source)`` fits the predictor with the
+paper's MSE loss, validates each epoch, writes ``config.json``, ``schedule.json`` and
+``metrics.jsonl`` in the workdir and keeps orbax checkpoints under ``workdir/checkpoints``.
+Started again on the same workdir, it resumes from the last checkpoint; because the data
+order is a pure function of (seed, epoch), a resumed run ends with the same parameters as an
+uninterrupted one.
+
+``train_step`` and ``eval_step`` are pure functions; the loop jits them once with the batch
+sharded over a 1-D ``data`` mesh of the local devices and the state replicated, so the same
+code runs on one CPU, two forced host devices, or a GPU.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import flax
+import jax
+import jax.numpy as jnp
+import ml_collections
+import numpy as np
+import optax
+import orbax.checkpoint as ocp
+from flax.training import train_state
+from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
+
+from rp_jax import losses, model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax.datasets import input_pipeline
+
+__all__ = [
+    "TrainState",
+    "create_model",
+    "create_train_state",
+    "model_inputs",
+    "train_step",
+    "eval_step",
+    "train_and_evaluate",
+    "evaluate",
+    "make_mesh",
+]
+
+log = logging.getLogger(__name__)
+
+
+class TrainState(train_state.TrainState):
+    """Flax's TrainState (params, opt_state, step, tx, apply_fn)."""
+
+
+def create_model(config: ml_collections.ConfigDict, num_timestamps: int):
+    """The RP network of Sec. III-B sized by ``config.model``."""
+    dtypes = {"float32": jnp.float32, "bfloat16": jnp.bfloat16}
+    if config.model.dtype not in dtypes:
+        raise ValueError(f"config.model.dtype must be one of {sorted(dtypes)}, got {config.model.dtype!r}")
+    return model_lib.RepeatabilityPredictor(
+        num_timestamps=num_timestamps,
+        encoder_channels=tuple(config.model.encoder_channels),
+        encoder_features=config.model.encoder_features,
+        gem_init_p=config.model.gem_init_p,
+        dtype=dtypes[config.model.dtype],
+    )
+
+
+def model_inputs(batch: dict, config: ml_collections.ConfigDict):
+    """Batch dict -> (patches, xy, time features), the network's three inputs (pure)."""
+    patches = model_lib.preprocess_patches(batch["patch"])
+    time_features = time_encoding.encode(
+        batch["hour"], batch["minute"], batch["day"], batch["month"],
+        fields=config.time_fields, encoding=config.time_encoding,
+    )
+    return patches, batch["xy_normalized"], time_features
+
+
+def _learning_rate_schedule(config, steps_per_epoch: int):
+    total = max(int(config.num_epochs * steps_per_epoch), 2)
+    warmup = max(1, min(int(config.warmup_epochs * steps_per_epoch), total - 1))
+    return optax.warmup_cosine_decay_schedule(0.0, config.learning_rate, warmup, total)
+
+
+def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -> TrainState:
+    """Initialised parameters and AdamW (with clipping and a warm-up cosine schedule)."""
+    net = create_model(config, num_timestamps)
+    d = time_encoding.num_features(config.time_fields)
+    params = net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)), jnp.zeros((1, d)))["params"]
+    tx = optax.chain(
+        optax.clip_by_global_norm(config.grad_clip),
+        optax.adamw(_learning_rate_schedule(config, steps_per_epoch), weight_decay=config.weight_decay),
+    )
+    return TrainState.create(apply_fn=net.apply, params=params, tx=tx)
+
+
+def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict]:
+    """One optimisation step on the masked MSE of Sec. III-C (pure; jit it)."""
+
+    def loss_fn(params):
+        pred = state.apply_fn({"params": params}, *model_inputs(batch, config))
+        return losses.mse(pred, batch["label"], batch["label_mask"], batch["mask"])
+
+    loss, grads = jax.value_and_grad(loss_fn)(state.params)
+    state = state.apply_gradients(grads=grads)
+    return state, {"loss": loss, "grad_norm": optax.global_norm(grads)}
+
+
+def eval_step(params, batch: dict, apply_fn, config) -> dict:
+    """Sums for masked MSE/MAE over a padded batch (pure; jit it)."""
+    pred = apply_fn({"params": params}, *model_inputs(batch, config))
+    m = batch["label_mask"].astype(jnp.float32) * batch["mask"].astype(jnp.float32)[:, None]
+    err = pred - batch["label"]
+    return {
+        "sq_err": jnp.sum(m * err**2),
+        "abs_err": jnp.sum(m * jnp.abs(err)),
+        "entries": jnp.sum(m),
+        "examples": jnp.sum(batch["mask"].astype(jnp.float32)),
+    }
+
+
+def make_mesh(num_devices: int = 0) -> Mesh:
+    """A 1-D ``data`` mesh over the first ``num_devices`` local devices (0 = all)."""
+    devices = jax.local_devices()
+    if num_devices:
+        if num_devices > len(devices):
+            raise ValueError(f"config.num_devices={num_devices} but only {len(devices)} local devices")
+        devices = devices[:num_devices]
+    return Mesh(np.asarray(devices), ("data",))
+
+
+@dataclasses.dataclass
+class _Compiled:
+    train: Callable
+    evaluate: Callable
+    data: NamedSharding
+    replicated: NamedSharding
+
+
+def _compile(config, mesh: Mesh, apply_fn) -> _Compiled:
+    data = NamedSharding(mesh, P("data"))
+    replicated = NamedSharding(mesh, P())
+    train = jax.jit(
+        lambda s, b: train_step(s, b, config),
+        in_shardings=(replicated, data),
+        out_shardings=(replicated, replicated),
+        donate_argnums=(0,),
+    )
+    evaluate_fn = jax.jit(
+        lambda p, b: eval_step(p, b, apply_fn, config),
+        in_shardings=(replicated, data),
+        out_shardings=replicated,
+    )
+    return _Compiled(train, evaluate_fn, data, replicated)
+
+
+def evaluate(params, source, compiled: _Compiled, batch_size: int) -> dict[str, float]:
+    """Masked MSE (the paper's loss) and MAE over a whole source."""
+    totals: dict[str, float] = {}
+    for batch in input_pipeline.eval_batches(source, batch_size):
+        out = compiled.evaluate(params, jax.device_put(_model_batch(batch), compiled.data))
+        for k, v in out.items():
+            totals[k] = totals.get(k, 0.0) + float(v)
+    return {
+        "mse": totals["sq_err"] / max(totals["examples"], 1.0),
+        "mae": totals["abs_err"] / max(totals["entries"], 1.0),
+    }
+
+
+def _model_batch(batch: dict) -> dict:
+    keys = input_pipeline.MODEL_KEYS + ("mask",)
+    return {k: batch[k] for k in keys}
+
+
+def _checkpoint_manager(workdir: Path, config) -> ocp.CheckpointManager:
+    return ocp.CheckpointManager(
+        (workdir / "checkpoints").absolute(),
+        options=ocp.CheckpointManagerOptions(max_to_keep=config.max_checkpoints_to_keep, create=True),
+    )
+
+
+def _state_tree(state: TrainState) -> dict:
+    return {"params": state.params, "opt_state": state.opt_state, "step": state.step}
+
+
+def write_run_files(workdir: Path, config, schedule: schedule_lib.TimeSchedule) -> None:
+    """``config.json`` and ``schedule.json``: what ``rp_jax.predict.load`` rebuilds a model from."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    for name, payload in (("config.json", config.to_dict()), ("schedule.json", schedule.to_dict())):
+        tmp = workdir / f".{name}.tmp"
+        tmp.write_text(json.dumps(payload, indent=2, default=list))
+        os.replace(tmp, workdir / name)
+
+
+def _check_same_config(workdir: Path, config) -> None:
+    path = workdir / "config.json"
+    if not path.exists():
+        return
+    old = json.loads(path.read_text())
+    new = json.loads(json.dumps(config.to_dict(), default=list))
+    keep = ("num_epochs", "eval_every_epochs", "checkpoint_every_epochs", "max_checkpoints_to_keep",
+            "eval_batch_size")
+    diff = sorted(k for k in set(old) | set(new) if k not in keep and old.get(k) != new.get(k))
+    if diff:
+        raise ValueError(
+            f"{workdir} holds a run with a different config (fields {diff}); use a new --workdir "
+            "or delete the old one"
+        )
+
+
+def train_and_evaluate(
+    config: ml_collections.ConfigDict,
+    workdir: str | os.PathLike,
+    train_source,
+    val_source=None,
+    *,
+    schedule: schedule_lib.TimeSchedule | None = None,
+    on_epoch_end: Callable[[int, dict], None] | None = None,
+    progress: bool = True,
+) -> TrainState:
+    """Train (resuming if the workdir has checkpoints), validate each epoch, checkpoint.
+
+    Args:
+      config: see ``rp_jax/configs/default.py``.
+      workdir: the run's directory.
+      train_source, val_source: ``input_pipeline.ArraySource`` (or any record source).
+      schedule: the timestamps of the labels; default ``schedule.preset(config.schedule)``.
+      on_epoch_end: called with (epoch, metrics) after each epoch's checkpoint (tests use it
+        to interrupt a run).
+      progress: show a tqdm bar per epoch.
+
+    Returns:
+      The final TrainState (replicated over the mesh).
+    """
+    from tqdm.auto import tqdm
+
+    workdir = Path(workdir).absolute()
+    schedule = schedule or schedule_lib.preset(config.schedule)
+    if not isinstance(train_source, input_pipeline.ArraySource):
+        train_source = input_pipeline.ArraySource.from_records(train_source)
+    if val_source is not None and not isinstance(val_source, input_pipeline.ArraySource):
+        val_source = input_pipeline.ArraySource.from_records(val_source)
+    T = schedule.num_timestamps
+    label_shape = train_source.arrays["label"].shape
+    if label_shape[1:] != (T,):
+        raise ValueError(f"labels have shape {label_shape[1:]} but schedule {schedule.name!r} has T={T}")
+
+    mesh = make_mesh(config.num_devices)
+    n_dev = mesh.devices.size
+    if config.batch_size % n_dev or config.eval_batch_size % n_dev:
+        raise ValueError(f"batch sizes must be divisible by the {n_dev} devices")
+    steps_per_epoch = input_pipeline.num_train_steps(len(train_source), config.batch_size)
+    if steps_per_epoch == 0:
+        raise ValueError(
+            f"{len(train_source)} training records is fewer than one batch of {config.batch_size}"
+        )
+
+    _check_same_config(workdir, config)
+    write_run_files(workdir, config, schedule)
+    state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
+    compiled = _compile(config, mesh, state.apply_fn)
+    manager = _checkpoint_manager(workdir, config)
+    start_epoch = 0
+    if manager.latest_step() is not None:
+        restored = manager.restore(
+            manager.latest_step(), args=ocp.args.StandardRestore(_state_tree(state))
+        )
+        state = state.replace(params=restored["params"], opt_state=restored["opt_state"],
+                              step=restored["step"])
+        start_epoch = int(restored["step"]) // steps_per_epoch
+        log.info("resumed from step %d (epoch %d) in %s", int(restored["step"]), start_epoch, workdir)
+    state = jax.device_put(state, compiled.replicated)
+
+    metrics_path = workdir / "metrics.jsonl"
+    for epoch in range(start_epoch, int(config.num_epochs)):
+        t0 = time.perf_counter()
+        batches = input_pipeline.epoch_batches(train_source, config.batch_size, seed=config.seed, epoch=epoch)
+        losses_sum = jnp.zeros(())
+        bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
+                   disable=not progress, leave=False)
+        for i in bar:
+            batch = jax.device_put(_model_batch(batches[i]), compiled.data)
+            state, m = compiled.train(state, batch)
+            losses_sum = losses_sum + m["loss"]
+        train_loss = float(losses_sum) / steps_per_epoch
+        elapsed = time.perf_counter() - t0
+        record: dict[str, Any] = {
+            "epoch": epoch + 1,
+            "step": int(state.step),
+            "train_mse": train_loss,
+            "train_samples_per_s": steps_per_epoch * config.batch_size / elapsed,
+            "epoch_seconds": elapsed,
+        }
+        last = epoch + 1 == int(config.num_epochs)
+        if val_source is not None and ((epoch + 1) % config.eval_every_epochs == 0 or last):
+            val = evaluate(state.params, val_source, compiled, config.eval_batch_size)
+            record.update({"val_mse": val["mse"], "val_mae": val["mae"]})
+        if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
+            manager.save(int(state.step), args=ocp.args.StandardSave(_state_tree(state)))
+            manager.wait_until_finished()
+        with open(metrics_path, "a") as f:
+            f.write(json.dumps(record) + "\n")
+        if progress:
+            shown = {k: round(v, 5) if isinstance(v, float) else v for k, v in record.items()}
+            tqdm.write(json.dumps(shown))
+        if on_epoch_end is not None:
+            on_epoch_end(epoch + 1, record)
+    manager.close()
+    return state
+
+
+def params_to_numpy(params) -> Any:
+    """Host copy of a (possibly sharded) params pytree."""
+    return jax.tree.map(np.asarray, flax.core.unfreeze(params))

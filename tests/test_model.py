@@ -1,0 +1,54 @@
+"""Tests of rp_jax.model: GeM pooling and the predictor of Sec. III-B."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rp_jax import model
+
+
+def test_gem_is_mean_at_p1_and_tends_to_max():
+    zs = jnp.asarray(np.random.default_rng(0).uniform(0.1, 2.0, (3, 64)), jnp.float32)
+    np.testing.assert_allclose(model.gem_pool(zs, 1.0), zs.mean(0), rtol=1e-5)
+    gaps = [float(jnp.abs(model.gem_pool(zs, p) - zs.max(0)).max()) for p in (2.0, 10.0, 100.0, 1000.0)]
+    assert all(b < a for a, b in zip(gaps, gaps[1:]))
+    assert gaps[-1] < 0.01
+
+
+def test_gem_exponent_stays_valid():
+    assert float(model.GeM.p_from(jnp.asarray(-1e4))) >= 1.0
+    gem = model.GeM(init_p=3.0)
+    params = gem.init(jax.random.key(0), jnp.ones((3, 4)))
+    np.testing.assert_allclose(model.GeM.p_from(params["params"]["rho"]), 3.0, rtol=1e-5)
+    with pytest.raises(ValueError, match="init_p"):
+        model.GeM(init_p=0.5).init(jax.random.key(0), jnp.ones((3, 4)))
+
+
+def test_space_to_depth_is_a_reshape():
+    x = jnp.arange(2 * 8 * 8 * 3, dtype=jnp.float32).reshape(2, 8, 8, 3)
+    y = model.space_to_depth(x, 4)
+    assert y.shape == (2, 2, 2, 48)
+    np.testing.assert_array_equal(y[0, 1, 0].reshape(4, 4, 3), x[0, 4:8, 0:4])
+
+
+def test_predictor_shapes_range_and_parameter_count():
+    net = model.RepeatabilityPredictor(num_timestamps=21)
+    x = jnp.zeros((5, 64, 64, 3))
+    params = net.init(jax.random.key(0), x, jnp.zeros((5, 2)), jnp.zeros((5, 2)))["params"]
+    y = net.apply({"params": params}, x, jnp.full((5, 2), 0.5), jnp.ones((5, 2)))
+    assert y.shape == (5, 21)
+    assert bool(jnp.all((y > 0) & (y < 1)))
+    # The paper's fully connected sizes.
+    sizes = {k: params[k]["kernel"].shape[1] for k in ("fc1", "fc2", "fc3", "fc4", "fc5", "fc6")}
+    assert sizes == {"fc1": 64, "fc2": 32, "fc3": 64, "fc4": 32, "fc5": 64, "fc6": 21}
+    count = sum(p.size for p in jax.tree.leaves(params))
+    print(f"RepeatabilityPredictor(T=21) parameters: {count:,}")
+    assert 100_000 < count < 2_000_000
+
+
+def test_bfloat16_encoder_keeps_float32_output():
+    net = model.RepeatabilityPredictor(num_timestamps=4, dtype=jnp.bfloat16)
+    x = jnp.zeros((2, 64, 64, 3))
+    params = net.init(jax.random.key(0), x, jnp.zeros((2, 2)), jnp.zeros((2, 2)))
+    assert net.apply(params, x, jnp.zeros((2, 2)), jnp.zeros((2, 2))).dtype == jnp.float32

@@ -1,0 +1,104 @@
+"""Tests of the public API rp_jax.predict."""
+
+import datetime as dt
+import json
+import shutil
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rp_jax import predict, schedule as schedule_lib, train
+from rp_jax.datasets import input_pipeline as ip, learnable_task
+from tests.test_train import SCHEDULE, small_config
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    wd = tmp_path_factory.mktemp("run")
+    src = ip.ArraySource(learnable_task.make_learnable_task(64, SCHEDULE, seed=0), ip.MODEL_KEYS)
+    train.train_and_evaluate(small_config(num_epochs=1), wd, src, progress=False)
+    return wd
+
+
+def test_load_and_call(workdir):
+    rp = predict.load(workdir)
+    assert rp.schedule == SCHEDULE and rp.num_timestamps == 21
+    rng = np.random.default_rng(0)
+    patches = rng.integers(0, 255, (5, 64, 64, 3), dtype=np.uint8)
+    xy = rng.uniform(0, 640, (5, 2))
+    times = [dt.datetime(2020, 5, 3, 8 + i, 0) for i in range(5)]
+    out = rp(patches, xy, times, image_size=(640, 480))
+    assert out.shape == (5, 21) and out.dtype == np.float32
+    assert np.all((out > 0) & (out < 1))
+    # Batched internally: a different batch size gives the same rows.
+    rp_small = predict.load(workdir, batch_size=2)
+    np.testing.assert_allclose(rp_small(patches, xy, times, image_size=(640, 480)), out, atol=1e-5)
+    # Same as the pure function.
+    feats = predict.encode_times(times, rp.config)
+    pure = predict.repeatability(rp.params, patches, xy / np.array([640, 480]), feats, config=rp.config)
+    np.testing.assert_allclose(np.asarray(pure), out, atol=1e-5)
+
+
+def test_repeatability_under_jit_vmap_grad(workdir):
+    rp = predict.load(workdir)
+    p = jnp.full((3, 64, 64, 3), 0.5)
+    xy = jnp.full((3, 2), 0.5)
+    t = jnp.zeros((3, 2))
+    f = jax.jit(lambda params, p, xy, t: predict.repeatability(params, p, xy, t, config=rp.config))
+    base = f(rp.params, p, xy, t)
+    # vmap over a leading axis of point sets.
+    v = jax.vmap(lambda p, xy, t: predict.repeatability(rp.params, p, xy, t, config=rp.config))
+    np.testing.assert_allclose(v(p[None], xy[None], t[None])[0], base, atol=1e-6)
+    # grad w.r.t. the patch (e.g. saliency) and w.r.t. the time input.
+    g = jax.grad(lambda p: predict.repeatability(rp.params, p, xy, t, config=rp.config).sum())(p)
+    assert g.shape == p.shape and bool(jnp.any(g != 0))
+    gt = jax.grad(lambda t: predict.repeatability(rp.params, p, xy, t, config=rp.config).sum())(t)
+    assert bool(jnp.all(jnp.isfinite(gt)))
+
+
+def test_bad_inputs_raise(workdir):
+    rp = predict.load(workdir)
+    good_t = [dt.datetime(2020, 1, 1, 12)] * 2
+    with pytest.raises(ValueError, match=r"\[N, 64, 64, 3\]"):
+        rp(np.zeros((2, 32, 32, 3), np.uint8), np.zeros((2, 2)), good_t)
+    with pytest.raises(ValueError, match="xy must be"):
+        rp(np.zeros((2, 64, 64, 3), np.uint8), np.zeros((3, 2)), good_t)
+    with pytest.raises(ValueError, match="NaN"):
+        rp(np.zeros((2, 64, 64, 3), np.uint8), np.full((2, 2), np.nan), good_t)
+    with pytest.raises(ValueError, match="times must be"):
+        rp(np.zeros((2, 64, 64, 3), np.uint8), np.zeros((2, 2)), np.zeros((2, 4), np.float32))
+
+
+def test_load_errors_name_what_is_missing(workdir, tmp_path):
+    with pytest.raises(ValueError, match="config.json is missing"):
+        predict.load(tmp_path)
+    empty = tmp_path / "no_ckpt"
+    shutil.copytree(workdir, empty, ignore=shutil.ignore_patterns("checkpoints"))
+    with pytest.raises(ValueError, match="no checkpoints"):
+        predict.load(empty)
+    other = tmp_path / "other"
+    shutil.copytree(workdir, other)
+    cfg = json.loads((other / "config.json").read_text())
+    cfg["model"]["encoder_features"] = 48  # a checkpoint of another config
+    (other / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ValueError, match="does not match the config"):
+        predict.load(other)
+
+
+def test_at_time_interpolates_between_slots_and_wraps():
+    s = schedule_lib.preset("webcam_clipart")  # 8:00, 8:30, ..., 18:00
+    scores = np.zeros((2, 21), np.float32)
+    scores[0, 0], scores[0, 1], scores[0, 20] = 1.0, 0.5, 0.0
+    scores[1] = np.linspace(0, 1, 21)
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 8, 15))
+    np.testing.assert_allclose(at, [0.75, 0.025], atol=1e-6)
+    np.testing.assert_allclose(predict.at_time(scores, s, dt.datetime(2020, 1, 1, 18, 0)), [0.0, 1.0])
+    # Between 18:00 and 8:00 of the next day the segment wraps: 1:00 is half way.
+    np.testing.assert_allclose(predict.at_time(scores, s, dt.datetime(2020, 1, 1, 1, 0)), [0.5, 0.5], atol=1e-6)
+    # One time per row.
+    per_row = predict.at_time(scores, s, [dt.datetime(2020, 1, 1, 8, 0), dt.datetime(2020, 1, 1, 18, 0)])
+    np.testing.assert_allclose(per_row, [1.0, 1.0])
+    with pytest.raises(ValueError, match="timestamps"):
+        predict.at_time(np.zeros((1, 5)), s, dt.datetime(2020, 1, 1))

@@ -1,0 +1,52 @@
+"""Tests of rp_jax.time_encoding (the time input of Sec. III-B)."""
+
+import datetime as dt
+
+import jax
+import numpy as np
+import pytest
+
+from rp_jax import time_encoding as te
+
+
+def _enc(times, **kw):
+    f = te.fields_from_datetimes(times)
+    return np.asarray(te.encode(f["hour"], f["minute"], f["day"], f["month"], **kw))
+
+
+@pytest.mark.parametrize("fields,d", [("time_of_day", 2), ("day_of_year", 2), ("hour_of_year", 4)])
+@pytest.mark.parametrize("encoding", ["raw", "cyclic"])
+def test_dimensions_match_paper(fields, d, encoding):
+    out = _enc([dt.datetime(2020, 3, 4, 12, 30)] * 3, fields=fields, encoding=encoding)
+    assert out.shape == (3, d) and out.dtype == np.float32
+
+
+def test_raw_values_are_normalised_paper_fields():
+    out = _enc([dt.datetime(2020, 7, 16, 18, 30)], fields="hour_of_year", encoding="raw")[0]
+    np.testing.assert_allclose(out, [18 / 24, 30 / 60, 15 / 31, 6 / 12], rtol=1e-6)
+
+
+def test_cyclic_is_continuous_across_midnight_and_new_year():
+    minute = dt.timedelta(minutes=1)
+    for a in (dt.datetime(2020, 5, 3, 23, 59), dt.datetime(2020, 12, 31, 23, 59)):
+        e = _enc([a, a + minute], fields="hour_of_year", encoding="cyclic")
+        assert np.abs(e[0] - e[1]).max() < 0.02  # one minute / one day apart: nearly equal
+    raw = _enc([dt.datetime(2020, 5, 3, 23, 59), dt.datetime(2020, 5, 4, 0, 0)], fields="time_of_day",
+               encoding="raw")
+    assert np.abs(raw[0] - raw[1]).max() > 0.9  # the raw encoding jumps, as documented
+
+
+def test_cyclic_is_unit_circle_and_distinguishes_times():
+    times = [dt.datetime(2020, 1, 1, h, 0) for h in range(24)]
+    e = _enc(times, fields="time_of_day", encoding="cyclic")
+    np.testing.assert_allclose(np.linalg.norm(e, axis=1), 1.0, rtol=1e-5)
+    assert len({tuple(np.round(r, 4)) for r in e}) == 24
+
+
+def test_jittable_and_validates():
+    f = jax.jit(lambda h, m, d, mo: te.encode(h, m, d, mo, fields="hour_of_year"))
+    assert f(np.array([1]), np.array([2]), np.array([3]), np.array([4])).shape == (1, 4)
+    with pytest.raises(ValueError, match="unknown time fields"):
+        te.num_features("minute_of_week")
+    with pytest.raises(ValueError, match="unknown time encoding"):
+        te.encode(1, 2, 3, 4, encoding="fourier")

@@ -1,0 +1,126 @@
+"""Tests of rp_jax.train: one compilation, learning, resume, data parallelism."""
+
+import functools
+
+import chex
+import jax
+import numpy as np
+import pytest
+
+from rp_jax import schedule as schedule_lib, train
+from rp_jax.configs import default
+from rp_jax.datasets import input_pipeline as ip, learnable_task
+
+SCHEDULE = schedule_lib.preset("webcam_clipart")
+
+
+def small_config(**overrides):
+    c = default.get_config()
+    c.model.encoder_channels = (16, 16, 32)
+    c.model.encoder_features = 32
+    c.batch_size = 32
+    c.eval_batch_size = 64
+    c.num_epochs = 3
+    c.learning_rate = 3e-3
+    for k, v in overrides.items():
+        setattr(c, k, v)
+    return c
+
+
+def task(n, seed):
+    return ip.ArraySource(learnable_task.make_learnable_task(n, SCHEDULE, seed=seed), ip.MODEL_KEYS)
+
+
+def _batch(src, n):
+    b = src.take(np.arange(n))
+    b["mask"] = np.ones(n, bool)
+    return b
+
+
+def test_train_step_compiles_once():
+    config = small_config()
+    src = task(64, 0)
+    state = train.create_train_state(config, 21, 10, jax.random.key(0))
+
+    @jax.jit
+    @chex.assert_max_traces(n=1)
+    def step(s, b):
+        return train.train_step(s, b, config)
+
+    for i in range(3):
+        b = src.take(np.arange(i * 16, i * 16 + 16))
+        b["mask"] = np.ones(16, bool)
+        state, metrics = step(state, b)
+    assert np.isfinite(float(metrics["loss"]))
+    assert int(state.step) == 3
+
+
+def test_learns_the_task_far_below_the_per_slot_mean(tmp_path):
+    config = default.get_config()
+    config.num_epochs = 8
+    config.batch_size = 128
+    rec_train = learnable_task.make_learnable_task(3000, SCHEDULE, seed=0)
+    rec_val = learnable_task.make_learnable_task(500, SCHEDULE, seed=1)
+    train.train_and_evaluate(config, tmp_path, ip.ArraySource(rec_train, ip.MODEL_KEYS),
+                             ip.ArraySource(rec_val, ip.MODEL_KEYS), progress=False)
+    last = [l for l in (tmp_path / "metrics.jsonl").read_text().splitlines()][-1]
+    import json
+
+    val_mse = json.loads(last)["val_mse"]
+    baseline = float(((rec_val["label"] - rec_train["label"].mean(0)) ** 2).sum(1).mean())
+    print(f"val MSE {val_mse:.3f} vs per-slot mean {baseline:.3f}")
+    assert val_mse < 0.5 * baseline
+
+
+def test_resume_equals_uninterrupted(tmp_path):
+    config = small_config()
+    src, val = task(256, 0), task(64, 1)
+    full = train.train_and_evaluate(config, tmp_path / "a", src, val, progress=False)
+
+    class Killed(Exception):
+        pass
+
+    def kill_after_first(epoch, _):
+        if epoch == 1:
+            raise Killed
+
+    with pytest.raises(Killed):
+        train.train_and_evaluate(config, tmp_path / "b", src, val, progress=False,
+                                 on_epoch_end=kill_after_first)
+    resumed = train.train_and_evaluate(config, tmp_path / "b", src, val, progress=False)
+    assert int(resumed.step) == int(full.step)
+    chex.assert_trees_all_close(train.params_to_numpy(resumed.params),
+                                train.params_to_numpy(full.params), atol=1e-6)
+    epochs = [l for l in (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    assert len(epochs) == 3
+
+
+def test_refuses_a_workdir_of_another_config(tmp_path):
+    src = task(64, 0)
+    train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
+    with pytest.raises(ValueError, match="different config"):
+        train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1.0), tmp_path, src, progress=False)
+
+
+@pytest.mark.skipif(len(jax.local_devices()) < 2, reason="needs 2 forced CPU devices (conftest)")
+def test_one_and_two_devices_agree():
+    config = small_config()
+    src = task(64, 0)
+    batch = _batch(src, 64)
+    results = []
+    for n in (1, 2):
+        mesh = train.make_mesh(n)
+        state = train.create_train_state(config, 21, 10, jax.random.key(0))
+        compiled = train._compile(config, mesh, state.apply_fn)
+        state = jax.device_put(state, compiled.replicated)
+        state, metrics = compiled.train(state, jax.device_put(batch, compiled.data))
+        results.append((float(metrics["loss"]), train.params_to_numpy(state.params)))
+    assert results[0][0] == pytest.approx(results[1][0], rel=1e-5)
+    chex.assert_trees_all_close(results[0][1], results[1][1], atol=1e-5)
+
+
+def test_bad_sizes_raise(tmp_path):
+    with pytest.raises(ValueError, match="fewer than one batch"):
+        train.train_and_evaluate(small_config(), tmp_path, task(8, 0), progress=False)
+    with pytest.raises(ValueError, match="devices"):
+        train.train_and_evaluate(small_config(batch_size=33), tmp_path / "x", task(64, 0), progress=False)
