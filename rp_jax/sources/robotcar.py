@@ -1,0 +1,554 @@
+"""Reader of the Oxford RobotCar layout (Maddern et al.), Sec. IV-B-1 of the paper.
+
+The paper uses the 9 traversals of its Table I (T = 9 hourly timestamps 9:00-17:00, M = 1)
+and 23 hand-picked viewpoints given by latitude/longitude and vehicle yaw; an image belongs
+to a viewpoint when it lies within 5 m and 45 deg of yaw (``viewpoints.assign_to_listed``).
+
+Layout read (see ``DATA_FORMATS.md``)::
+
+    <root>/<YYYY-MM-DD-HH-MM-SS>/stereo/centre/<unix_us>.png    raw Bayer gbrg mosaics
+    <root>/<YYYY-MM-DD-HH-MM-SS>/stereo.timestamps              <unix_us> <chunk>
+    <root>/<YYYY-MM-DD-HH-MM-SS>/gps/ins.csv                    INS poses (or rtk.csv)
+    <root>/models/stereo_narrow_left.txt                        fx fy cx cy + 4x4 G_camera_image
+    <root>/models/stereo_narrow_left_distortion_lut.bin         optional undistortion LUT
+    <root>/extrinsics/stereo.txt, ins.txt                       optional x y z roll pitch yaw
+    <root>/viewpoints.csv                                       viewpoint,latitude,longitude,yaw_deg
+    <root>/segmentation/<traversal>/stereo/centre/<ts>.png      optional category maps
+
+A root that is itself one traversal folder is read as that traversal. The SDK's ``models/``
+and ``extrinsics/`` folders can be given with ``models_dir``/``extrinsics_dir``.
+
+Conventions (the SDK's, written once here):
+
+* Poses: the pose file gives the INS pose in a north-east-down world frame: position
+  (northing, easting, down) in metres and R = Rz(yaw) Ry(pitch) Rx(roll) (radians), i.e.
+  T_world_ins maps INS coordinates to world coordinates. It is interpolated at each image
+  timestamp: position and latitude/longitude linearly, orientation by slerp; images outside
+  the pose file's time span are dropped and counted.
+* Extrinsics ``extrinsics/<sensor>.txt`` (``x y z roll pitch yaw``) are T_vehicle_sensor,
+  the sensor's pose in the vehicle frame, as the SDK's ``build_pointcloud`` reads them. The
+  stereo camera *is* the vehicle frame in the SDK, so a missing ``stereo.txt`` is identity;
+  a missing ``ins.txt`` is taken as identity too (with a warning: give the SDK's
+  ``extrinsics/`` folder for metric-accurate camera poses).
+* ``G_camera_image`` maps the image (optical: x right, y down, z forward) frame to the
+  camera (x forward, y right, z down) frame; missing, it is that axis permutation.
+* The camera's world-to-camera pose (OpenCV) is the inverse of
+  T_world_image = T_world_ins inv(T_vehicle_ins) T_vehicle_camera G_camera_image. World
+  coordinates are absolute UTM (northing, easting, down), float64.
+* Time: folder names and timestamps are UTC; captures carry Europe/London wall-clock time.
+* Slots: ``data_specs/robotcar.json`` ``traversal_slots`` (the paper's Table I) fixes the
+  slot of the listed traversals; others use ``schedule.slot_of`` per image. Cycles use the
+  ``"session_rank"`` rule with one session per traversal (M = 1 for Table I).
+* Pixels: ``load_image`` demosaics (gbrg) and, when the model's distortion LUT is present,
+  undistorts with it, so they follow ``capture.camera`` (PINHOLE fx fy cx cy). Without the
+  LUT the raw (slightly distorted) image is returned and ``meta["undistorted"]`` is False.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import datetime as dt
+import logging
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+from tqdm import tqdm
+
+from rp_jax.schedule import DATA_SPECS_DIR, TimeSchedule, load_spec, preset
+from rp_jax.sources import images, viewpoints
+from rp_jax.sources.capture import Camera, Capture
+from rp_jax.sources.layout import (
+    CycleRule,
+    LayoutError,
+    ReadCounts,
+    assign_slots,
+    require_layout,
+    segmentation_path,
+    zone,
+)
+
+__all__ = [
+    "BAYER_PATTERN",
+    "DEFAULT_G_CAMERA_IMAGE",
+    "camera_pose",
+    "euler_to_rotation",
+    "find_traversals",
+    "interpolate_poses",
+    "load_image",
+    "read",
+    "read_camera_model",
+    "read_extrinsics",
+    "read_pose_table",
+    "read_timestamps",
+    "se3_from_xyzrpy",
+]
+
+log = logging.getLogger(__name__)
+
+DATASET = "Oxford RobotCar"
+SPEC_NAME = "robotcar"
+BAYER_PATTERN = "gbrg"  # stereo cameras; the mono cameras are rggb
+TRAVERSAL = re.compile(r"^\d{4}-\d{2}-\d{2}-\d{2}-\d{2}-\d{2}$")
+# Image (optical) frame -> camera frame (x forward, y right, z down).
+DEFAULT_G_CAMERA_IMAGE = np.array(
+    [[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+)
+# Published stereo_narrow_left intrinsics (used, with a warning, if models/ is absent).
+STEREO_NARROW_LEFT = (964.828979, 964.828979, 643.788025, 484.407990)
+_POSE_COLUMNS = ("timestamp", "northing", "easting", "down", "roll", "pitch", "yaw")
+_EXPECTED = (
+    "YYYY-MM-DD-HH-MM-SS/stereo/centre/<ts>.png",
+    "YYYY-MM-DD-HH-MM-SS/stereo.timestamps",
+    "YYYY-MM-DD-HH-MM-SS/gps/ins.csv (or rtk.csv)",
+)
+
+
+def euler_to_rotation(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (radians), shape (..., 3, 3)."""
+    angles = np.stack(np.broadcast_arrays(yaw, pitch, roll), axis=-1)
+    return (
+        Rotation.from_euler("ZYX", angles.reshape(-1, 3))
+        .as_matrix()
+        .reshape(angles.shape[:-1] + (3, 3))
+    )
+
+
+def se3_from_xyzrpy(values: Sequence[float]) -> np.ndarray:
+    """4x4 transform from ``x y z roll pitch yaw`` (the SDK's ``build_se3_transform``)."""
+    x, y, z, roll, pitch, yaw = (float(v) for v in values)
+    T = np.eye(4)
+    T[:3, :3] = euler_to_rotation(roll, pitch, yaw)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def find_traversals(root: Path) -> dict[str, Path]:
+    """Traversal folder name -> path; the root itself if it is a traversal folder."""
+    root = Path(root)
+    if TRAVERSAL.match(root.name) and (root / "stereo").is_dir():
+        return {root.name: root}
+    return {p.name: p for p in sorted(root.iterdir()) if p.is_dir() and TRAVERSAL.match(p.name)}
+
+
+def read_timestamps(path: Path) -> np.ndarray:
+    """The image timestamps (UNIX microseconds) of a ``<camera>.timestamps`` file."""
+    out = []
+    for line_no, line in enumerate(Path(path).read_text().splitlines(), start=1):
+        tokens = line.split()
+        if not tokens:
+            continue
+        try:
+            out.append(int(tokens[0]))
+        except ValueError as err:
+            raise LayoutError(
+                f"{path}:{line_no}: expected '<ts_us> <chunk>', got {line!r}"
+            ) from err
+    return np.asarray(out, dtype=np.int64)
+
+
+def read_pose_table(path: Path) -> dict[str, np.ndarray]:
+    """Columns of an ``ins.csv`` or ``rtk.csv`` file as float64 arrays, sorted by timestamp.
+
+    Needs ``timestamp,northing,easting,down,roll,pitch,yaw``; ``latitude``/``longitude``
+    are read when present.
+    """
+    path = Path(path)
+    with path.open(newline="") as f:
+        reader = csv.DictReader(f)
+        fields = [n.strip() for n in (reader.fieldnames or [])]
+        missing = [c for c in _POSE_COLUMNS if c not in fields]
+        if missing:
+            raise LayoutError(
+                f"{path}: header lacks {missing}; expected 'timestamp,ins_status,latitude,"
+                "longitude,altitude,northing,easting,down,utm_zone,...,roll,pitch,yaw'"
+            )
+        wanted = list(_POSE_COLUMNS) + [c for c in ("latitude", "longitude") if c in fields]
+        rows: dict[str, list[float]] = {c: [] for c in wanted}
+        for line_no, row in enumerate(reader, start=2):
+            row = {(k or "").strip(): v for k, v in row.items()}
+            try:
+                values = {c: float(row[c]) for c in wanted}
+            except (TypeError, ValueError) as err:
+                raise LayoutError(f"{path}:{line_no}: non-numeric pose row") from err
+            for c in wanted:
+                rows[c].append(values[c])
+    table = {c: np.asarray(v, dtype=np.float64) for c, v in rows.items()}
+    table["timestamp"] = table["timestamp"].astype(np.int64)
+    order = np.argsort(table["timestamp"], kind="stable")
+    table = {c: v[order] for c, v in table.items()}
+    if len(table["timestamp"]) < 2:
+        raise LayoutError(f"{path}: fewer than two poses; cannot interpolate")
+    return table
+
+
+def interpolate_poses(table: Mapping[str, np.ndarray], timestamps: np.ndarray) -> dict:
+    """The pose table at ``timestamps``: linear position and lat/lon, slerp orientation.
+
+    Returns:
+      dict with ``valid`` (bool, inside the table's time span), ``position`` (N, 3)
+      north/east/down, ``R_world_ins`` (N, 3, 3), ``yaw`` (N,) radians, and
+      ``latitude``/``longitude`` when the table has them. Invalid rows hold NaN/identity.
+    """
+    ts = np.asarray(timestamps, dtype=np.int64)
+    t_table = table["timestamp"]
+    # Duplicate timestamps break slerp; keep the first of each.
+    t_unique, first = np.unique(t_table, return_index=True)
+    valid = (ts >= t_unique[0]) & (ts <= t_unique[-1])
+    x = ts.astype(np.float64)
+    position = np.stack(
+        [np.interp(x, t_unique, table[c][first]) for c in ("northing", "easting", "down")], axis=-1
+    )
+    rotations = Rotation.from_matrix(
+        euler_to_rotation(table["roll"][first], table["pitch"][first], table["yaw"][first])
+    )
+    slerp = Slerp(t_unique.astype(np.float64), rotations)
+    clipped = np.clip(x, t_unique[0], t_unique[-1])
+    R = slerp(clipped).as_matrix().reshape(-1, 3, 3)
+    yaw = Rotation.from_matrix(R).as_euler("ZYX")[:, 0] if len(R) else np.zeros(0)
+    out = {"valid": valid, "position": position, "R_world_ins": R, "yaw": yaw}
+    for c in ("latitude", "longitude"):
+        if c in table:
+            out[c] = np.interp(x, t_unique, table[c][first])
+    position[~valid] = np.nan
+    return out
+
+
+def read_camera_model(path: Path) -> tuple[tuple[float, float, float, float], np.ndarray]:
+    """((fx, fy, cx, cy), G_camera_image 4x4) from a ``models/<name>.txt`` file."""
+    lines = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip()]
+    try:
+        fx, fy, cx, cy = (float(v) for v in lines[0][:4])
+        G = np.array([[float(v) for v in ln] for ln in lines[1:5]]) if len(lines) >= 5 else None
+    except (IndexError, ValueError) as err:
+        raise LayoutError(f"{path}: expected 'fx fy cx cy' then a 4x4 G_camera_image") from err
+    if G is None:
+        G = DEFAULT_G_CAMERA_IMAGE.copy()
+    elif G.shape != (4, 4):
+        raise LayoutError(f"{path}: G_camera_image is {G.shape}, expected 4x4")
+    return (fx, fy, cx, cy), G
+
+
+def read_extrinsics(path: Path) -> np.ndarray:
+    """T_vehicle_sensor (4x4) from an ``x y z roll pitch yaw`` file."""
+    tokens = Path(path).read_text().split()
+    if len(tokens) < 6:
+        raise LayoutError(f"{path}: expected 'x y z roll pitch yaw', got {tokens}")
+    try:
+        return se3_from_xyzrpy([float(v) for v in tokens[:6]])
+    except ValueError as err:
+        raise LayoutError(f"{path}: non-numeric extrinsics {tokens}") from err
+
+
+def camera_pose(
+    R_world_ins: np.ndarray,
+    position: np.ndarray,
+    T_vehicle_ins: np.ndarray,
+    T_vehicle_camera: np.ndarray,
+    G_camera_image: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """World-to-camera (R, t) in OpenCV convention from an INS pose and the calibration."""
+    T_world_ins = np.eye(4)
+    T_world_ins[:3, :3] = R_world_ins
+    T_world_ins[:3, 3] = position
+    T_world_image = T_world_ins @ np.linalg.inv(T_vehicle_ins) @ T_vehicle_camera @ G_camera_image
+    R_wc = T_world_image[:3, :3]
+    R = R_wc.T
+    return R, -R @ T_world_image[:3, 3]
+
+
+def _pose_file(root: Path, traversal: Path, pose_source: str) -> Path | None:
+    rtk = [
+        traversal / "gps" / "rtk.csv",
+        traversal / "rtk.csv",
+        root / "rtk" / traversal.name / "rtk.csv",
+    ]
+    ins = [traversal / "gps" / "ins.csv"]
+    order = {"auto": rtk + ins, "rtk": rtk, "ins": ins}.get(pose_source)
+    if order is None:
+        raise ValueError(f"pose_source must be 'auto', 'rtk' or 'ins', got {pose_source!r}")
+    return next((p for p in order if p.is_file()), None)
+
+
+def _viewpoint_list(root: Path, option) -> list[viewpoints.ListedViewpoint] | None:
+    if option is not None and not isinstance(option, (str, Path)):
+        return list(option)
+    if option is not None:
+        return viewpoints.read_viewpoint_list(Path(option))
+    if (root / "viewpoints.csv").is_file():
+        return viewpoints.read_viewpoint_list(root / "viewpoints.csv")
+    spec_csv = load_spec(SPEC_NAME).get("viewpoints_csv")
+    if spec_csv:
+        path = Path(spec_csv)
+        path = path if path.is_absolute() else DATA_SPECS_DIR / path
+        if path.is_file():
+            return viewpoints.read_viewpoint_list(path)
+        log.warning("data_specs/robotcar.json names %s, which does not exist", path)
+    return None
+
+
+def _camera(models_dir: Path, camera_name: str, size: tuple[int, int]):
+    path = models_dir / f"{camera_name}.txt"
+    if path.is_file():
+        (fx, fy, cx, cy), G = read_camera_model(path)
+    else:
+        if camera_name != "stereo_narrow_left":
+            raise LayoutError(f"no camera model {path}; expected models/{camera_name}.txt")
+        log.warning("no %s; using the published stereo_narrow_left intrinsics", path)
+        (fx, fy, cx, cy), G = STEREO_NARROW_LEFT, DEFAULT_G_CAMERA_IMAGE.copy()
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    lut = models_dir / f"{camera_name}_distortion_lut.bin"
+    return Camera("PINHOLE", size[0], size[1], K), G, (lut if lut.is_file() else None)
+
+
+def read(
+    root: Path,
+    *,
+    schedule: TimeSchedule | None = None,
+    viewpoint_list: Path | Sequence[viewpoints.ListedViewpoint] | None = None,
+    traversals: Sequence[str] | None = None,
+    models_dir: Path | None = None,
+    extrinsics_dir: Path | None = None,
+    camera_name: str = "stereo_narrow_left",
+    image_dir: str = "stereo/centre",
+    pose_source: str = "auto",
+    radius_m: float | None = None,
+    max_yaw_deg: float | None = None,
+    traversal_slots: Mapping[str, int] | None = None,
+    cycle_rule: CycleRule = "session_rank",
+) -> list[Capture]:
+    """Read an Oxford RobotCar layout into posed captures at the listed viewpoints.
+
+    Args:
+      root: folder of traversal folders (or one traversal folder).
+      schedule: defaults to ``preset("robotcar")`` (9 hourly slots 9:00-17:00).
+      viewpoint_list: a ``viewpoint,latitude,longitude,yaw_deg`` CSV or a list of
+        ``ListedViewpoint``; default ``<root>/viewpoints.csv``, then the CSV named by
+        ``viewpoints_csv`` in ``data_specs/robotcar.json``. With none, images are grouped
+        by pose (``viewpoints.group_by_pose``, radius_m and max_yaw_deg) with a warning.
+      traversals: only these traversal folder names.
+      models_dir, extrinsics_dir: the SDK folders; default ``<root>/models`` and
+        ``<root>/extrinsics`` (for a single-traversal root, its parent's).
+      camera_name, image_dir: camera model name and image folder within a traversal.
+      pose_source: ``"auto"`` (rtk.csv if found, else ins.csv), ``"rtk"`` or ``"ins"``.
+      radius_m, max_yaw_deg: viewpoint membership; default the spec's 5 m and 45 deg.
+      traversal_slots: folder -> slot overrides added to the spec's Table I.
+      cycle_rule: see ``layout``; one session per traversal.
+
+    Returns:
+      Captures sorted by (viewpoint, time).
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise LayoutError(f"{root} is not a folder; expected a {DATASET} root")
+    schedule = schedule or preset(SPEC_NAME)
+    spec = load_spec(SPEC_NAME)
+    radius_m = spec.get("viewpoint_radius_m", 5.0) if radius_m is None else radius_m
+    max_yaw_deg = spec.get("viewpoint_yaw_deg", 45.0) if max_yaw_deg is None else max_yaw_deg
+    slots = {k: int(v) for k, v in spec.get("traversal_slots", {}).items() if k != "note"}
+    slots.update(traversal_slots or {})
+    tz = zone(spec.get("timezone", "Europe/London"))
+
+    found = find_traversals(root)
+    base = root.parent if found == {root.name: root} else root
+    missing = []
+    if not found:
+        missing.append(f"no traversal folder YYYY-MM-DD-HH-MM-SS in {root}")
+    if traversals is not None:
+        absent = sorted(set(traversals) - set(found))
+        if absent and found:
+            missing.append(f"traversals {absent} (found {sorted(found)})")
+        found = {n: found[n] for n in traversals if n in found}
+    for name, trav in found.items():
+        if not (trav / image_dir).is_dir():
+            missing.append(f"{name}/{image_dir}/")
+        if _pose_file(base, trav, pose_source) is None:
+            missing.append(f"{name}/gps/ins.csv (or rtk.csv)")
+    require_layout(DATASET, root, _EXPECTED, missing)
+
+    models_dir = Path(models_dir) if models_dir else base / "models"
+    extrinsics_dir = Path(extrinsics_dir) if extrinsics_dir else base / "extrinsics"
+    sensor = image_dir.split("/")[0]
+    T_vehicle_camera = (
+        read_extrinsics(extrinsics_dir / f"{sensor}.txt")
+        if (extrinsics_dir / f"{sensor}.txt").is_file()
+        else np.eye(4)
+    )
+    if (extrinsics_dir / "ins.txt").is_file():
+        T_vehicle_ins = read_extrinsics(extrinsics_dir / "ins.txt")
+    else:
+        log.warning(
+            "no %s; the INS is taken to sit at the camera (identity extrinsics)",
+            extrinsics_dir / "ins.txt",
+        )
+        T_vehicle_ins = np.eye(4)
+    listed = _viewpoint_list(base, viewpoint_list)
+    if listed is None:
+        log.warning(
+            "%s: no viewpoint list (viewpoints.csv); grouping images by pose "
+            "within %.1f m and %.0f deg",
+            root,
+            radius_m,
+            max_yaw_deg,
+        )
+
+    counts = ReadCounts(DATASET)
+    posed: list[tuple[Capture, float, float, float]] = []  # capture, lat, lon, yaw_deg
+    camera_cache: dict[tuple[int, int], tuple] = {}
+    for name, trav in found.items():
+        folder = trav / image_dir
+        ts_file = trav / f"{sensor}.timestamps"
+        if ts_file.is_file():
+            stamps = read_timestamps(ts_file)
+        else:
+            stamps = np.asarray(
+                sorted(int(p.stem) for p in folder.glob("*.png") if p.stem.isdigit()),
+                dtype=np.int64,
+            )
+        pose_path = _pose_file(base, trav, pose_source)
+        poses = interpolate_poses(read_pose_table(pose_path), stamps)
+        for i, stamp in enumerate(tqdm(stamps, desc=f"robotcar {name}", leave=False, disable=None)):
+            path = folder / f"{stamp}.png"
+            if not path.is_file():
+                continue  # timestamps also list frames of chunks not downloaded
+            counts.read += 1
+            if not poses["valid"][i]:
+                counts.no_pose += 1
+                continue
+            size = images.probe_size(path)
+            if size is None:
+                counts.unreadable += 1
+                log.warning("unreadable image %s; skipped", path)
+                continue
+            if size not in camera_cache:
+                camera_cache[size] = _camera(models_dir, camera_name, size)
+            camera, G, lut = camera_cache[size]
+            R, t = camera_pose(
+                poses["R_world_ins"][i], poses["position"][i], T_vehicle_ins, T_vehicle_camera, G
+            )
+            utc = dt.datetime(1970, 1, 1, tzinfo=dt.UTC) + dt.timedelta(microseconds=int(stamp))
+            meta = {
+                "traversal": name,
+                "timestamp_us": int(stamp),
+                "bayer_pattern": BAYER_PATTERN,
+                "pose_file": pose_path,
+                "distortion_lut": lut,
+                "undistorted": lut is not None,
+                "yaw_deg": float(np.rad2deg(poses["yaw"][i])),
+            }
+            for c in ("latitude", "longitude"):
+                if c in poses:
+                    meta[c] = float(poses[c][i])
+            seg = segmentation_path(base, path)
+            if seg is not None:
+                meta["segmentation_path"] = seg
+            cap = Capture(
+                image_path=path,
+                time=utc.astimezone(tz),
+                camera=camera,
+                viewpoint=name,
+                R=R,
+                t=t,
+                image_id=f"{name}/{image_dir}/{path.name}",
+                meta=meta,
+            )
+            posed.append(
+                (cap, meta.get("latitude", np.nan), meta.get("longitude", np.nan), meta["yaw_deg"])
+            )
+
+    grouped = _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts)
+    assigned = assign_slots(
+        grouped,
+        schedule,
+        cycle_rule=cycle_rule,
+        session_of=lambda c: c.meta["traversal"],
+        slot_override=lambda c: slots.get(c.meta["traversal"]),
+        counts=counts,
+    )
+    counts.kept = len(assigned)
+    counts.log_summary()
+    return assigned
+
+
+def _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts) -> list[Capture]:
+    if not posed:
+        return []
+    caps = [p[0] for p in posed]
+    if listed is not None:
+        lat = np.array([p[1] for p in posed])
+        if np.isnan(lat).any():
+            raise LayoutError(
+                "the pose file has no latitude/longitude columns; a viewpoint list needs them"
+            )
+        labels = viewpoints.assign_to_listed(
+            lat,
+            np.array([p[2] for p in posed]),
+            np.array([p[3] for p in posed]),
+            listed,
+            radius_m=radius_m,
+            max_yaw_deg=max_yaw_deg,
+        )
+        names = [v.name for v in listed]
+    else:
+        order = sorted(range(len(caps)), key=lambda i: (caps[i].time, caps[i].image_id))
+        caps = [caps[i] for i in order]
+        labels = viewpoints.group_by_pose(
+            np.stack([c.center for c in caps]),
+            np.stack([viewpoints.viewing_direction(c.R) for c in caps]),
+            max_distance=radius_m,
+            max_angle_deg=max_yaw_deg,
+            min_size=2,
+        )
+        names = [f"vp{i:04d}" for i in range(int(labels.max(initial=-1)) + 1)]
+    out = []
+    for cap, label in zip(caps, labels):
+        if label < 0:
+            counts.no_viewpoint += 1
+            continue
+        out.append(dataclasses.replace(cap, viewpoint=names[label]))
+    return out
+
+
+def load_image(capture: Capture) -> np.ndarray | None:
+    """Demosaiced (and, with the model's LUT, undistorted) RGB uint8; None if unreadable."""
+    image = images.read_bayer_rgb(
+        capture.image_path, capture.meta.get("bayer_pattern", BAYER_PATTERN)
+    )
+    if image is None:
+        return None
+    lut_path = capture.meta.get("distortion_lut")
+    if lut_path is None:
+        return image
+    lut = _load_lut(Path(lut_path), image.shape[:2])
+    if lut is None:
+        return image
+    return cv2.remap(
+        image, lut[0], lut[1], interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT
+    )
+
+
+_LUT_CACHE: dict[tuple[Path, tuple[int, int]], tuple[np.ndarray, np.ndarray] | None] = {}
+
+
+def _load_lut(path: Path, shape: tuple[int, int]):
+    """(map_x, map_y) float32 of the SDK's undistortion LUT: undistorted -> distorted pixel."""
+    key = (path, shape)
+    if key not in _LUT_CACHE:
+        lut = np.fromfile(path, np.float64)
+        h, w = shape
+        if lut.size != 2 * h * w:
+            log.warning(
+                "%s has %d values, expected 2*%d*%d; image not undistorted", path, lut.size, h, w
+            )
+            _LUT_CACHE[key] = None
+        else:
+            lut = lut.reshape(2, h * w)
+            _LUT_CACHE[key] = (
+                lut[0].reshape(h, w).astype(np.float32),
+                lut[1].reshape(h, w).astype(np.float32),
+            )
+    return _LUT_CACHE[key]

@@ -1,0 +1,155 @@
+"""Tests of the Oxford RobotCar reader on a tiny layout written here."""
+
+import datetime as dt
+import logging
+import zoneinfo
+
+import cv2
+import numpy as np
+import pytest
+
+from rp_jax.sources import images, robotcar
+from rp_jax.sources.layout import LayoutError
+from rp_jax.sources.viewpoints import EARTH_RADIUS_M
+
+LAT0, LON0 = 51.76, -1.26
+LONDON = zoneinfo.ZoneInfo("Europe/London")
+HEADER = (
+    "timestamp,ins_status,latitude,longitude,altitude,northing,easting,down,utm_zone,"
+    "velocity_north,velocity_east,velocity_down,roll,pitch,yaw\n"
+)
+G = "0 0 1 0\n1 0 0 0\n0 1 0 0\n0 0 0 1\n"
+
+
+def _rgb():
+    y, x = np.mgrid[0:24, 0:32]
+    return np.stack([50 + 4 * x, 30 + 5 * y, 220 - 3 * x], -1).astype(np.uint8)
+
+
+def _traversal(root, name, t0_utc, yaw_deg=0.0):
+    """Drives north at 10 m/s for 2 s from northing 0; frames at +0.1 s, +1 s, +3 s, one bad."""
+    trav = root / name
+    (trav / "stereo" / "centre").mkdir(parents=True)
+    (trav / "gps").mkdir()
+    t0 = int(t0_utc.timestamp() * 1e6)
+    rows = []
+    for dt_s in (0.0, 1.0, 2.0):
+        n = 10.0 * dt_s
+        lat = LAT0 + np.rad2deg(n / EARTH_RADIUS_M)
+        rows.append(
+            f"{t0 + int(dt_s * 1e6)},INS_SOLUTION_GOOD,{lat:.10f},{LON0},100,"
+            f"{5700000 + n},{620000.0},-100,30U,10,0,0,0,0,{np.deg2rad(yaw_deg)}\n"
+        )
+    (trav / "gps" / "ins.csv").write_text(HEADER + "".join(rows))
+    stamps = [t0 + 100_000, t0 + 1_000_000, t0 + 3_000_000, t0 + 200_000]
+    (trav / "stereo.timestamps").write_text("".join(f"{s} 1\n" for s in stamps))
+    for s in stamps[:3]:
+        cv2.imwrite(str(trav / "stereo" / "centre" / f"{s}.png"), images.mosaic(_rgb(), "gbrg"))
+    (trav / "stereo" / "centre" / f"{stamps[3]}.png").write_bytes(b"\x89PNG broken")
+    return stamps
+
+
+def _layout(root):
+    (root / "models").mkdir(parents=True)
+    (root / "models" / "stereo_narrow_left.txt").write_text("100 100 15.5 11.5\n" + G)
+    (root / "viewpoints.csv").write_text(
+        f"viewpoint,latitude,longitude,yaw_deg\nnorth_road,{LAT0},{LON0},20\n"
+    )
+    a = _traversal(root, "2015-02-13-09-16-26", dt.datetime(2015, 2, 13, 9, 16, 26, tzinfo=dt.UTC))
+    b = _traversal(root, "2015-06-01-10-00-00", dt.datetime(2015, 6, 1, 10, 0, 0, tzinfo=dt.UTC))
+    return a, b
+
+
+def test_read_times_poses_slots(tmp_path, caplog):
+    a, b = _layout(tmp_path)
+    with caplog.at_level(logging.INFO):
+        caps = robotcar.read(tmp_path)
+    # Per traversal: +0.1 s frame is 1 m from the viewpoint (kept), +1 s is 10 m (outside),
+    # +3 s is past the INS (no pose), the broken one is unreadable.
+    assert [c.meta["timestamp_us"] for c in caps] == [a[0], b[0]]
+    text = caplog.text
+    assert "8 read" in text and "2 unreadable" in text and "2 no pose" in text
+    assert "2 no viewpoint" in text and "2 kept" in text
+    first, second = caps
+    assert first.viewpoint == second.viewpoint == "north_road"
+    assert first.time == dt.datetime(2015, 2, 13, 9, 16, 26, 100_000, tzinfo=LONDON)
+    assert second.time.hour == 11 and second.time.utcoffset() == dt.timedelta(hours=1)  # BST
+    assert (first.cycle, first.slot) == (0, 0)  # Table I override in data_specs
+    assert (second.cycle, second.slot) == (0, 2)  # 11:00 London by slot_of
+    # Camera centre at northing +1 m; looking north; x right = east, y down = down.
+    C = np.array([5700001.0, 620000.0, -100.0])
+    np.testing.assert_allclose(first.center, C, atol=1e-6)
+    K = first.camera.K
+    for X, uv in [
+        (C + [10, 0, 0], (15.5, 11.5)),
+        (C + [10, 1, 0], (25.5, 11.5)),
+        (C + [10, 0, 1], (15.5, 21.5)),
+    ]:
+        x = K @ (first.R @ X + first.t)
+        np.testing.assert_allclose(x[:2] / x[2], uv, atol=1e-6)
+    assert first.camera.size == (32, 24) and first.meta["undistorted"] is False
+    img = robotcar.load_image(first)
+    assert img.shape == (24, 32, 3)
+    assert np.abs(img[2:-2, 2:-2].astype(int) - _rgb()[2:-2, 2:-2]).max() <= 2
+
+
+def test_yaw_and_radius_thresholds(tmp_path):
+    _layout(tmp_path)
+    assert len(robotcar.read(tmp_path, max_yaw_deg=10)) == 0  # vehicle yaw 0, viewpoint 20
+    assert len(robotcar.read(tmp_path, radius_m=15)) == 4
+
+
+def test_interpolation_position_and_yaw_wrap():
+    table = {
+        "timestamp": np.array([0, 1_000_000], np.int64),
+        "northing": np.array([0.0, 10.0]),
+        "easting": np.array([0.0, 4.0]),
+        "down": np.array([0.0, 0.0]),
+        "roll": np.zeros(2),
+        "pitch": np.zeros(2),
+        "yaw": np.deg2rad([350.0, 10.0]),
+        "latitude": np.array([1.0, 2.0]),
+        "longitude": np.array([3.0, 5.0]),
+    }
+    out = robotcar.interpolate_poses(table, np.array([500_000, 250_000, 2_000_000]))
+    assert out["valid"].tolist() == [True, True, False]
+    np.testing.assert_allclose(out["position"][0], [5.0, 2.0, 0.0])
+    np.testing.assert_allclose(np.rad2deg(out["yaw"][:2]), [0.0, -5.0], atol=1e-9)
+    np.testing.assert_allclose(out["latitude"][0], 1.5)
+
+
+def test_camera_pose_with_ins_extrinsics():
+    T_vehicle_ins = robotcar.se3_from_xyzrpy([1.0, 0, 0, 0, 0, 0])  # INS 1 m ahead of camera
+    R_world_ins = robotcar.euler_to_rotation(0.0, 0.0, np.pi / 2)  # heading east
+    R, t = robotcar.camera_pose(
+        R_world_ins,
+        np.array([10.0, 20.0, 0.0]),
+        T_vehicle_ins,
+        np.eye(4),
+        robotcar.DEFAULT_G_CAMERA_IMAGE,
+    )
+    centre = -R.T @ t
+    np.testing.assert_allclose(centre, [10.0, 19.0, 0.0], atol=1e-12)  # 1 m west of the INS
+    np.testing.assert_allclose(R[2], [0.0, 1.0, 0.0], atol=1e-12)  # looks east
+
+
+def test_single_traversal_root_and_pose_grouping(tmp_path):
+    a, _ = _layout(tmp_path)
+    (tmp_path / "viewpoints.csv").unlink()
+    caps = robotcar.read(tmp_path / "2015-02-13-09-16-26")
+    # Without a list, images are grouped by pose (5 m, 45 deg): the +0.1 s and +1 s frames are
+    # 9 m apart, so each is alone and dropped.
+    assert caps == []
+    caps = robotcar.read(tmp_path / "2015-02-13-09-16-26", radius_m=20)
+    assert [c.meta["timestamp_us"] for c in caps] == [a[0], a[1]]
+
+
+def test_bad_layouts(tmp_path):
+    with pytest.raises(LayoutError) as err:
+        robotcar.read(tmp_path)
+    msg = str(err.value)
+    assert "YYYY-MM-DD-HH-MM-SS" in msg and "stereo.timestamps" in msg and "ins.csv" in msg
+    _layout(tmp_path)
+    (tmp_path / "2015-06-01-10-00-00" / "gps" / "ins.csv").unlink()
+    with pytest.raises(LayoutError, match="2015-06-01-10-00-00/gps/ins.csv"):
+        robotcar.read(tmp_path)

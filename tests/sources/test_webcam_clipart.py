@@ -1,0 +1,153 @@
+"""Tests of the Webcam Clip Art reader on tiny layouts written here."""
+
+import datetime as dt
+import json
+import logging
+import zoneinfo
+
+import cv2
+import numpy as np
+import pytest
+import scipy.io
+
+from rp_jax.schedule import preset
+from rp_jax.sources import webcam_clipart
+from rp_jax.sources.layout import LayoutError
+
+
+def _frame(path, value=128, size=(24, 16)):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    img = np.full((size[1], size[0], 3), value, np.uint8)
+    img[2:6, 3:9] = (0, 0, 255)  # red in BGR
+    assert cv2.imwrite(str(path), img)
+
+
+def _scene(folder, stamps, suffix=".jpg"):
+    for s in stamps:
+        _frame(folder / f"{s}{suffix}")
+
+
+# Two days; 08:00, 08:31 (near 08:30), 08:05 (within 10 min of 08:00, farther than 08:00),
+# 09:15 (15 min from both 09:00 and 09:30: unassigned), and 12:00 on the second day.
+STAMPS = [
+    "20100601_080000",
+    "20100601_083100",
+    "20100601_080500",
+    "20100601_091500",
+    "20100602_120000",
+]
+
+
+@pytest.mark.parametrize("nested", [False, True])
+def test_both_nestings_times_and_slots(tmp_path, nested, caplog):
+    base = tmp_path / "images" if nested else tmp_path
+    _scene(base / "houseA", STAMPS)
+    _scene(base / "houseB", ["20100605_180000"], suffix=".PNG")
+    with caplog.at_level(logging.INFO):
+        caps = webcam_clipart.read(tmp_path)
+    by_id = {c.image_id: c for c in caps}
+    assert set(by_id) == {
+        "houseA/20100601_080000.jpg",
+        "houseA/20100601_083100.jpg",
+        "houseA/20100602_120000.jpg",
+        "houseB/20100605_180000.PNG",
+    }
+    c = by_id["houseA/20100601_083100.jpg"]
+    ny = zoneinfo.ZoneInfo("America/New_York")  # data_specs default_timezone
+    assert c.time == dt.datetime(2010, 6, 1, 8, 31, tzinfo=ny)
+    assert c.time.utcoffset() == dt.timedelta(hours=-4)
+    assert (c.cycle, c.slot) == (0, 1) and c.viewpoint == "houseA"
+    assert (
+        by_id["houseA/20100601_080000.jpg"].cycle,
+        by_id["houseA/20100601_080000.jpg"].slot,
+    ) == (0, 0)
+    assert (
+        by_id["houseA/20100602_120000.jpg"].cycle,
+        by_id["houseA/20100602_120000.jpg"].slot,
+    ) == (1, 8)
+    b = by_id["houseB/20100605_180000.PNG"]
+    assert (b.cycle, b.slot) == (0, 20)  # cycles renumber per viewpoint
+    assert c.camera.model == "PINHOLE" and c.camera.size == (24, 16) and c.camera.K[0, 0] == 24
+    assert "1 unassigned" in caplog.text and "1 extra in slot" in caplog.text
+    img = webcam_clipart.load_image(c)
+    assert img.shape == (16, 24, 3) and img.dtype == np.uint8
+    assert img[3, 5, 0] > 200 and img[3, 5, 2] < 60  # RGB order
+
+
+def test_keep_all_frames_in_a_slot(tmp_path):
+    _scene(tmp_path / "s", STAMPS)
+    caps = webcam_clipart.read(tmp_path, one_per_slot=False)
+    assert len(caps) == 4
+    assert [c.slot for c in caps if c.cycle == 0] == [0, 0, 1]
+
+
+def test_scene_json_timezone_and_csv_override(tmp_path):
+    scene = tmp_path / "s"
+    _scene(scene, ["20100601_080000", "20100601_090000", "frame_without_time"])
+    (scene / "scene.json").write_text(
+        json.dumps({"timezone": "Europe/Paris", "latitude": 48.8, "longitude": 2.3})
+    )
+    (scene / "metadata.csv").write_text(
+        "name,datetime\n20100601_090000.jpg,2010-06-03 10:30:00\n"
+        "frame_without_time,2010-06-03T06:00:00+00:00\n"
+    )
+    caps = webcam_clipart.read(tmp_path, schedule=preset("webcam_clipart"))
+    by_id = {c.image_id: c for c in caps}
+    paris = zoneinfo.ZoneInfo("Europe/Paris")
+    a = by_id["s/20100601_080000.jpg"]
+    assert (
+        a.time == dt.datetime(2010, 6, 1, 8, 0, tzinfo=paris)
+        and a.meta["time_source"] == "file_name"
+    )
+    b = by_id["s/20100601_090000.jpg"]
+    assert (
+        b.time == dt.datetime(2010, 6, 3, 10, 30, tzinfo=paris) and b.meta["time_source"] == "csv"
+    )
+    assert b.slot == 5 and b.cycle == 1
+    c = by_id["s/frame_without_time.jpg"]
+    assert c.time.hour == 8 and c.time.utcoffset() == dt.timedelta(hours=2)  # 06 UTC -> 08 CEST
+    assert a.meta["latitude"] == 48.8 and a.meta["timezone"] == "Europe/Paris"
+
+
+def test_sun_angles_and_segmentation(tmp_path):
+    _scene(tmp_path / "s", ["20100601_120000", "20100601_123000"])
+    scipy.io.savemat(
+        str(tmp_path / "s" / "20100601_120000.mat"), {"sunZenith": 30.5, "sunAzimuth": 180.25}
+    )
+    seg = tmp_path / "segmentation" / "s" / "20100601_120000.png"
+    seg.parent.mkdir(parents=True)
+    cv2.imwrite(str(seg), np.zeros((16, 24), np.uint8))
+    caps = {c.image_id: c for c in webcam_clipart.read(tmp_path)}
+    assert set(caps) == {"s/20100601_120000.jpg", "s/20100601_123000.jpg"}  # not 'segmentation'
+    a = caps["s/20100601_120000.jpg"]
+    assert a.meta["sunZenith"] == 30.5 and a.meta["sunAzimuth"] == 180.25
+    assert a.meta["segmentation_path"] == seg
+    assert "sunZenith" not in caps["s/20100601_123000.jpg"].meta
+    assert "segmentation_path" not in caps["s/20100601_123000.jpg"].meta
+
+
+def test_corrupt_image_is_skipped_and_counted(tmp_path, caplog):
+    _scene(tmp_path / "s", ["20100601_080000"])
+    (tmp_path / "s" / "20100601_083000.jpg").write_bytes(b"\x00garbage")
+    with caplog.at_level(logging.INFO):
+        caps = webcam_clipart.read(tmp_path)
+    assert [c.image_id for c in caps] == ["s/20100601_080000.jpg"]
+    assert "1 unreadable" in caplog.text and "20100601_083000.jpg" in caplog.text
+
+
+def test_bad_layout_names_what_it_looked_for(tmp_path):
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "readme.txt").write_text("hi")
+    with pytest.raises(LayoutError) as err:
+        webcam_clipart.read(tmp_path)
+    msg = str(err.value)
+    assert str(tmp_path) in msg and "YYYYMMDD_HHMMSS" in msg and "images/<scene>" in msg
+    _scene(tmp_path / "s", ["20100601_080000"])
+    with pytest.raises(LayoutError, match="nope"):
+        webcam_clipart.read(tmp_path, scenes=["nope"])
+
+
+def test_single_scene_root(tmp_path):
+    _scene(tmp_path, ["20100601_080000"])
+    (cap,) = webcam_clipart.read(tmp_path)
+    assert cap.viewpoint == tmp_path.name
