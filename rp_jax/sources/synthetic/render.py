@@ -1,0 +1,645 @@
+"""Renderer of the synthetic world: pinhole/OpenCV cameras, sun, shadows, weather, sensor.
+
+Stand-in for the photographs of Sec. IV-A: every downstream stage (SIFT ground truth of
+Sec. III-C, training, the localization of Sec. IV-C) runs on these pixels. The renderer is
+exact in geometry so that triangulation and PnP work as on real data: a quad's texture is
+mapped to the image by its plane homography (``cv2.warpPerspective``), depth comes from the
+plane equation (1/z is affine in pixel coordinates), and the image is rendered at 2x and
+box-downsampled. Cast shadows are exact too: occluders are projected along the sun
+direction onto each receiving plane (box silhouettes with ``cv2.fillPoly``, tree and people
+cut-outs as textured quads), then drawn through the receiving plane's homography.
+
+Conventions: ``View`` follows ``rp_jax.sources.capture`` (OpenCV pixels with the centre of
+the top-left pixel at (0, 0), ``x_cam = R X + t``, camera looking along +z). A non-zero
+``distortion`` renders the image the lens records (undistorted render, then ``cv2.remap``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+
+import cv2
+import numpy as np
+
+from rp_jax import categories
+from rp_jax.sources.synthetic import camera_effects, conditions as condlib
+from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState, dynamic_quads
+
+__all__ = ["View", "Frame", "render", "project", "contact_sheet", "look_at"]
+
+SS = 2  # supersampling factor
+NEAR = 0.05
+CLOUD_ALTITUDE = 1500.0
+_CLOUD_M_PER_TEXEL = 12.0
+
+
+@dataclasses.dataclass(frozen=True)
+class View:
+    """A camera: intrinsics, world-to-camera pose, image size, OpenCV distortion."""
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    width: int
+    height: int
+    distortion: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(4))
+
+    def __post_init__(self):
+        object.__setattr__(self, "K", np.asarray(self.K, np.float64).reshape(3, 3))
+        object.__setattr__(self, "R", np.asarray(self.R, np.float64).reshape(3, 3))
+        object.__setattr__(self, "t", np.asarray(self.t, np.float64).reshape(3))
+        d = np.zeros(4)
+        dist = np.asarray(self.distortion, np.float64).ravel()
+        if dist.size not in (0, 4):
+            raise ValueError(f"View.distortion must hold (k1, k2, p1, p2), got {dist}")
+        d[: dist.size] = dist
+        object.__setattr__(self, "distortion", d)
+
+    @property
+    def center(self) -> np.ndarray:
+        """Camera centre in world coordinates."""
+        return -self.R.T @ self.t
+
+
+@dataclasses.dataclass
+class Frame:
+    """One rendered capture.
+
+    Attributes:
+      rgb: uint8 (H, W, 3), RGB order.
+      depth: float32 (H, W), z along the optical axis in metres, ``np.inf`` for sky.
+      category: uint8 (H, W), ids of ``rp_jax.categories``.
+      meta: sun angles, weather, snow, foliage, gain...
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    category: np.ndarray
+    meta: dict
+
+
+def look_at(eye, target, *, width: int = 640, height: int = 480, fov_deg: float = 60.0,
+            up=(0.0, 0.0, 1.0), distortion=None) -> View:
+    """A level-ish pinhole view from ``eye`` looking at ``target`` (world frame).
+
+    Args:
+      eye, target: world points.
+      width, height: image size.
+      fov_deg: horizontal field of view.
+      up: world up direction.
+      distortion: optional (k1, k2, p1, p2).
+
+    Returns:
+      ``View``.
+    """
+    eye, target, up = (np.asarray(a, np.float64) for a in (eye, target, up))
+    z = target - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+    K = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1.0]])
+    return View(K, R, -R @ eye, width, height, np.zeros(4) if distortion is None else distortion)
+
+
+def project(view: View, X: np.ndarray) -> np.ndarray:
+    """World points to pixels of the recorded (distorted) image.
+
+    Args:
+      view: the camera.
+      X: (N, 3) world points.
+
+    Returns:
+      (N, 2) pixel coordinates (points behind the camera give meaningless values).
+    """
+    Xc = np.asarray(X, np.float64) @ view.R.T + view.t
+    x, y = Xc[:, 0] / Xc[:, 2], Xc[:, 1] / Xc[:, 2]
+    k1, k2, p1, p2 = view.distortion
+    if np.any(view.distortion):
+        r2 = x * x + y * y
+        radial = 1 + k1 * r2 + k2 * r2 * r2
+        x, y = (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+                y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
+    K = view.K
+    return np.stack([K[0, 0] * x + K[0, 1] * y + K[0, 2], K[1, 1] * y + K[1, 2]], -1)
+
+
+# ---------------------------------------------------------------- geometry helpers
+
+
+def _clip_near(poly: np.ndarray, near: float = NEAR) -> np.ndarray:
+    """Sutherland-Hodgman clip of a camera-space polygon (M, 3) to z >= near."""
+    z = poly[:, 2]
+    if np.all(z >= near):
+        return poly
+    out = []
+    m = len(poly)
+    for i in range(m):
+        a, b = poly[i], poly[(i + 1) % m]
+        ina, inb = a[2] >= near, b[2] >= near
+        if ina:
+            out.append(a)
+        if ina != inb:
+            s = (near - a[2]) / (b[2] - a[2])
+            out.append(a + s * (b - a))
+    return np.array(out).reshape(-1, 3)
+
+
+def _poly_region(poly_cam: np.ndarray, K: np.ndarray, W: int, H: int):
+    """ROI and coverage mask of a camera-space polygon; None when it is not in the image."""
+    poly = _clip_near(poly_cam)
+    if len(poly) < 3:
+        return None
+    pix = (poly @ K.T)
+    pix = pix[:, :2] / pix[:, 2:3]
+    x0, y0 = np.floor(pix.min(0)).astype(int)
+    x1, y1 = np.ceil(pix.max(0)).astype(int) + 1
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    pts = np.round((pix - [x0, y0]) * 16.0).astype(np.int32)
+    cv2.fillPoly(mask, [pts], 1, lineType=cv2.LINE_8, shift=4)
+    return (x0, y0, x1, y1), mask, pix
+
+
+def _texel_homography(o, u, v, Wt: int, Ht: int, K, R, t) -> np.ndarray:
+    """Homography from level-0 texel coordinates (texel centres at integers) to pixels."""
+    Ru, Rv = R @ u / Wt, R @ v / Ht
+    c = R @ o + t + 0.5 * Ru + 0.5 * Rv
+    return K @ np.stack([Ru, Rv, c], axis=1)
+
+
+def _level_matrix(level: int) -> np.ndarray:
+    s = float(2**level)
+    off = 0.5 * s - 0.5
+    return np.array([[s, 0, off], [0, s, off], [0, 0, 1.0]])
+
+
+def _choose_level(Hm: np.ndarray, at: np.ndarray, n_levels: int) -> int:
+    """Mip level with texels about the size of a pixel around image point ``at``."""
+    Hinv = np.linalg.inv(Hm)
+    p = np.array([[at[0], at[1], 1.0], [at[0] + 1, at[1], 1.0], [at[0], at[1] + 1, 1.0]]) @ Hinv.T
+    p = p[:, :2] / p[:, 2:3]
+    scale = max(np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[2] - p[0]))
+    return int(np.clip(np.floor(np.log2(max(scale, 1e-9)) + 0.3), 0, n_levels - 1))
+
+
+def _poly_area(pix: np.ndarray) -> float:
+    x, y = pix[:, 0], pix[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+
+
+def _warp(tex_pyr, o, u, v, K, R, t, roi, pix, alpha: bool) -> np.ndarray:
+    Wt, Ht = tex_pyr[0].shape[1], tex_pyr[0].shape[0]
+    Hm = _texel_homography(o, u, v, Wt, Ht, K, R, t)
+    if len(pix) == 4:  # unclipped: the mean texel footprint of the whole quad
+        ratio = np.sqrt(Wt * Ht / max(_poly_area(pix), 1e-6))
+        level = int(np.clip(np.floor(np.log2(max(ratio, 1e-9)) + 0.3), 0, len(tex_pyr) - 1))
+    else:
+        level = _choose_level(Hm, pix.mean(0), len(tex_pyr))
+    x0, y0, x1, y1 = roi
+    M = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]]) @ Hm @ _level_matrix(level)
+    return cv2.warpPerspective(tex_pyr[level], M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_CONSTANT if alpha else cv2.BORDER_REPLICATE)
+
+
+# ---------------------------------------------------------------- rasterisation
+
+
+@dataclasses.dataclass
+class _GBuffer:
+    albedo: np.ndarray  # (H, W, 4) uint8 (RGB + aux)
+    invz: np.ndarray  # (H, W) float32
+    qid: np.ndarray  # (H, W) int32, N for sky
+    plane: np.ndarray  # (N, 3) n_c / d_c per quad (1/z = plane . K^-1 [u, v, 1])
+    drawn: np.ndarray  # (N,) bool
+    roi: dict  # quad -> roi
+
+
+def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: int, H: int) -> _GBuffer:
+    N = quads.n
+    C = -R.T @ t
+    o, u, v = quads.origin, quads.u, quads.v
+    corners = np.stack([o, o + u, o + u + v, o + v], 1)
+    cam = corners @ R.T + t
+    nrm = quads.normal
+    two_sided = (quads.material == Material.FOLIAGE) | (quads.material == Material.CUTOUT)
+    facing = np.einsum("ij,ij->i", nrm, C - o) > 1e-6
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    zc = cam[..., 2]
+    xc, yc = cam[..., 0], cam[..., 1]
+    out = (np.all(zc < NEAR, 1) | np.all(xc < zc * (-0.5 - cx) / fx, 1) | np.all(xc > zc * (W - 0.5 - cx) / fx, 1)
+           | np.all(yc < zc * (-0.5 - cy) / fy, 1) | np.all(yc > zc * (H - 0.5 - cy) / fy, 1)
+           | np.all(zc > 400.0, 1))
+    visible = np.flatnonzero(~out & (facing | two_sided))
+    # Plane of each quad in camera space: (R n) . X_c = n . o + (R n) . t.
+    n_c = nrm @ R.T
+    d_c = np.einsum("ij,ij->i", nrm, o) + n_c @ t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plane = np.where(np.abs(d_c)[:, None] > 1e-9, n_c / d_c[:, None], 0.0)
+    Kinv = np.linalg.inv(K)
+    coef = plane @ Kinv  # 1/z = coef . [u, v, 1]
+    zb = np.zeros((H, W), np.float32)
+    gb = np.zeros((H, W, 4), np.uint8)
+    gb32 = gb.view(np.uint32).reshape(H, W)
+    qid = np.full((H, W), N, np.int32)
+    xs = np.arange(W, dtype=np.float32)
+    ys = np.arange(H, dtype=np.float32)
+    drawn = np.zeros(N, bool)
+    rois = {}
+    for i in visible:
+        if abs(d_c[i]) < 1e-6:
+            continue
+        reg = _poly_region(cam[i], K, W, H)
+        if reg is None:
+            continue
+        roi, mask, pix = reg
+        x0, y0, x1, y1 = roi
+        alpha = bool(two_sided[i])
+        pyr = scene.textures.pyramid(quads.tex[i], state)
+        warped = _warp(pyr, o[i], u[i], v[i], K, R, t, roi, pix, alpha)
+        a, b, c = coef[i].astype(np.float32)
+        iz = (a * xs[x0:x1])[None, :] + (b * ys[y0:y1] + c)[:, None]
+        m = mask.view(bool) & (iz > zb[y0:y1, x0:x1])
+        if alpha:
+            m &= warped[..., 3] > 127
+        np.copyto(zb[y0:y1, x0:x1], iz, where=m)
+        np.copyto(gb32[y0:y1, x0:x1], warped.view(np.uint32).reshape(y1 - y0, x1 - x0), where=m)
+        np.copyto(qid[y0:y1, x0:x1], i, where=m)
+        drawn[i] = True
+        rois[i] = roi
+    return _GBuffer(gb, zb, qid, plane, drawn, rois)
+
+
+# ---------------------------------------------------------------- shadows
+
+
+def _box_corners(boxes: np.ndarray) -> np.ndarray:
+    lo, hi = boxes[:, 0], boxes[:, 1]
+    sel = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    return np.where(sel[None, :, :] == 0, lo[:, None, :], hi[:, None, :])
+
+
+def _object_shadow(points: np.ndarray, sun: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """1 where the ray from a point towards the sun hits a box (slab test), else 0."""
+    if len(boxes) == 0 or len(points) == 0:
+        return np.zeros(len(points), np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / np.where(np.abs(sun) < 1e-12, 1e-12, sun)
+        t0 = (boxes[None, :, 0, :] - points[:, None, :]) * inv
+        t1 = (boxes[None, :, 1, :] - points[:, None, :]) * inv
+    tmin = np.minimum(t0, t1).max(-1)
+    tmax = np.maximum(t0, t1).min(-1)
+    hit = (tmax >= np.maximum(tmin, 1e-3))
+    return hit.any(1).astype(np.float32)
+
+
+def _cast_shadows(gbuf: _GBuffer, quads: QuadSet, scene: Scene, state: TextureState, sun: np.ndarray,
+                  boxes: np.ndarray, alpha_idx: np.ndarray, K, R, t, W: int, H: int) -> np.ndarray:
+    """uint8 (H, W) = 1 where a receiving plane's pixel lies in a cast shadow."""
+    shadow = np.zeros((H, W), np.uint8)
+    recv_of_quad = np.append(quads.receiver, -1)
+    drawn_recv = np.flatnonzero(gbuf.drawn & (quads.receiver >= 0))
+    if len(drawn_recv) == 0 or sun[2] <= 0.01:
+        return shadow
+    planes = np.unique(quads.receiver[drawn_recv])
+    plane_px = np.take(recv_of_quad, gbuf.qid)
+    corners8 = _box_corners(boxes) if len(boxes) else np.zeros((0, 8, 3))
+    nrm_all = quads.normal
+    for p in planes:
+        members = drawn_recv[quads.receiver[drawn_recv] == p]
+        q0 = members[0]
+        n = nrm_all[q0]
+        ns = float(n @ sun)
+        if ns <= 0.02:
+            continue  # the plane faces away from the sun: Lambert already darkens it
+        d = float(n @ quads.origin[q0])
+        rx0 = min(gbuf.roi[i][0] for i in members)
+        ry0 = min(gbuf.roi[i][1] for i in members)
+        rx1 = max(gbuf.roi[i][2] for i in members)
+        ry1 = max(gbuf.roi[i][3] for i in members)
+        # Receiver extent in plane coordinates (for culling occluders).
+        e1 = quads.u[q0] / np.linalg.norm(quads.u[q0])
+        e2 = np.cross(n, e1)
+        mc = np.concatenate([np.stack([quads.origin[i], quads.origin[i] + quads.u[i], quads.origin[i] + quads.v[i],
+                                       quads.origin[i] + quads.u[i] + quads.v[i]]) for i in members])
+        ext = np.stack([mc @ e1, mc @ e2], 1)
+        elo, ehi = ext.min(0) - 0.1, ext.max(0) + 0.1
+        tmp = np.zeros((ry1 - ry0, rx1 - rx0), np.uint8)
+        Kroi = np.array([[1, 0, -rx0], [0, 1, -ry0], [0, 0, 1.0]]) @ K
+        if len(corners8):
+            lam = (corners8 @ n - d) / ns  # (B, 8)
+            ok = np.all(lam >= -1e-6, 1) & np.any(lam > 1e-3, 1)
+            proj = corners8 - lam[..., None] * sun
+            c2 = np.stack([proj @ e1, proj @ e2], -1)  # (B, 8, 2)
+            ok &= np.all(c2.max(1) >= elo, 1) & np.all(c2.min(1) <= ehi, 1)
+            for b in np.flatnonzero(ok):
+                hull = cv2.convexHull(c2[b].astype(np.float32)).reshape(-1, 2).astype(np.float64)
+                poly = n * d + hull[:, :1] * e1 + hull[:, 1:2] * e2
+                reg = _poly_region(poly @ R.T + t, Kroi, rx1 - rx0, ry1 - ry0)
+                if reg is not None:
+                    (x0, y0, x1, y1), mask, _ = reg
+                    tmp[y0:y1, x0:x1] |= mask
+        for i in alpha_idx:
+            oc = np.stack([quads.origin[i], quads.origin[i] + quads.u[i], quads.origin[i] + quads.v[i]])
+            lam = (oc @ n - d) / ns
+            if np.any(lam < -1e-6):
+                continue
+            pr = oc - lam[:, None] * sun
+            o2, u2, v2 = pr[0], pr[1] - pr[0], pr[2] - pr[0]
+            quad = np.stack([o2, o2 + u2, o2 + u2 + v2, o2 + v2])
+            q2 = np.stack([quad @ e1, quad @ e2], 1)
+            if np.any(q2.max(0) < elo) or np.any(q2.min(0) > ehi):
+                continue
+            reg = _poly_region(quad @ R.T + t, Kroi, rx1 - rx0, ry1 - ry0)
+            if reg is None:
+                continue
+            roi, mask, pix = reg
+            pyr = scene.textures.pyramid(quads.tex[i], state)
+            warped = _warp(pyr, o2, u2, v2, Kroi, R, t, roi, pix, alpha=True)
+            x0, y0, x1, y1 = roi
+            tmp[y0:y1, x0:x1] |= mask & (warped[..., 3] > 127).astype(np.uint8)
+        shadow[ry0:ry1, rx0:rx1] |= tmp & (plane_px[ry0:ry1, rx0:rx1] == p).astype(np.uint8)
+    return shadow
+
+
+# ---------------------------------------------------------------- sky and clouds
+
+
+@functools.lru_cache(maxsize=8)
+def _cloud_texture(seed: int) -> np.ndarray:
+    """A 512x512 cloud field with a uniform value distribution (rank-normalised noise)."""
+    rng = np.random.default_rng([seed, 31])
+    n = tx.value_noise((512, 512), rng, cell=96, octaves=6)
+    ranks = np.argsort(np.argsort(n.ravel())).reshape(n.shape)
+    return (ranks / ranks.size).astype(np.float32)
+
+
+def _cloud_density(scene_seed: int, qx: np.ndarray, qy: np.ndarray, cover: float) -> np.ndarray:
+    tex = _cloud_texture(scene_seed)
+    period = 2 * 512
+    mx = np.mod(qx / _CLOUD_M_PER_TEXEL, period)
+    my = np.mod(qy / _CLOUD_M_PER_TEXEL, period)
+    mx = (511.0 - np.abs(mx - 511.0)).astype(np.float32)  # mirror-fold: seamless tiling
+    my = (511.0 - np.abs(my - 511.0)).astype(np.float32)
+    shape = mx.shape
+    flat = mx.size
+    pad = (-flat) % 1024  # remap wants 2-D maps under 32767 rows
+    mx = np.pad(mx.ravel(), (0, pad)).reshape(-1, 1024)
+    my = np.pad(my.ravel(), (0, pad)).reshape(-1, 1024)
+    val = cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT).ravel()[:flat].reshape(shape)
+    return np.clip((val - (1.0 - cover)) / 0.12, 0.0, 1.0)
+
+
+def _sky(cond: condlib.Conditions, dirs: np.ndarray, C: np.ndarray, scene_seed: int) -> np.ndarray:
+    """Sky radiance (N, 3) for unit view directions (N, 3)."""
+    dz = dirs[:, 2]
+    up = np.clip(dz, 0.0, 1.0)[:, None]
+    sky = cond.horizon_rgb + (cond.zenith_rgb - cond.horizon_rgb) * np.sqrt(up)
+    sky = np.where(dz[:, None] < 0, cond.horizon_rgb * 0.8, sky)
+    cosang = dirs @ cond.sun_dir
+    vis = np.clip(cond.sun_elevation_deg + 4.0, 0.0, 4.0) / 4.0
+    if cond.weather in ("clear", "partly_cloudy"):
+        glow = 0.35 * np.exp((cosang - 1.0) * 10.0) + 6.0 * np.exp((cosang - 1.0) * 3000.0)
+        sky = sky + vis * glow[:, None] * (cond.sun_rgb + 0.05)
+    if cond.cloud_cover > 0.02:
+        s = np.where(dz > 0.02, (CLOUD_ALTITUDE - C[2]) / np.maximum(dz, 0.02), 0.0)
+        qx = C[0] + dirs[:, 0] * s + cond.cloud_offset[0]
+        qy = C[1] + dirs[:, 1] * s + cond.cloud_offset[1]
+        dens = _cloud_density(scene_seed, qx, qy, cond.cloud_cover)
+        dens = dens * np.clip(dz / 0.08, 0.0, 1.0)
+        lit = cond.sun_rgb * 0.55 + cond.sky_rgb * 1.6 + np.float32([0.003, 0.002, 0.001])
+        under = lit * (0.55 if cond.cloud_cover < 0.8 else 0.9)
+        cloud_col = under[None, :] + (lit - under)[None, :] * np.clip(cosang, 0, 1)[:, None] ** 4
+        sky = sky * (1 - dens[:, None]) + cloud_col * dens[:, None]
+    return sky.astype(np.float32)
+
+
+# ---------------------------------------------------------------- distortion canvas
+
+
+@functools.lru_cache(maxsize=16)
+def _canvas(kbytes: bytes, dbytes: bytes, width: int, height: int):
+    K = np.frombuffer(kbytes).reshape(3, 3)
+    dist = np.frombuffer(dbytes)
+    u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    # Invert the OpenCV distortion by fixed-point iteration (as cv2.undistortPoints does).
+    xd = (u - K[0, 2] - K[0, 1] * (v - K[1, 2]) / K[1, 1]) / K[0, 0]
+    yd = (v - K[1, 2]) / K[1, 1]
+    k1, k2, p1, p2 = dist[:4]
+    x, y = xd.copy(), yd.copy()
+    for _ in range(60):
+        r2 = x * x + y * y
+        radial = 1 + k1 * r2 + k2 * r2 * r2
+        x = (xd - (2 * p1 * x * y + p2 * (r2 + 2 * x * x))) / radial
+        y = (yd - (p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)) / radial
+    und = np.stack([K[0, 0] * x + K[0, 1] * y + K[0, 2], K[1, 1] * y + K[1, 2]], -1)
+    ox = int(np.floor(und[..., 0].min())) - 2
+    oy = int(np.floor(und[..., 1].min())) - 2
+    wc = int(np.ceil(und[..., 0].max())) - ox + 3
+    hc = int(np.ceil(und[..., 1].max())) - oy + 3
+    Kc = K.copy()
+    Kc[0, 2] -= ox
+    Kc[1, 2] -= oy
+    mx = (und[..., 0] - ox).astype(np.float32)
+    my = (und[..., 1] - oy).astype(np.float32)
+    return Kc, wc, hc, mx, my
+
+
+# ---------------------------------------------------------------- the frame
+
+
+def _srgb_to_linear_lut() -> np.ndarray:
+    x = np.arange(256) / 255.0
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+_LIN = _srgb_to_linear_lut()
+
+
+def _window_threshold(n_owners: int, scene_seed: int, day: int, hour: float, prob: float) -> np.ndarray:
+    """Per building, the aux value at or above which a window is lit (see ``textures._window``)."""
+    rng = np.random.default_rng([scene_seed, 41, day, int(hour * 2)])
+    p = np.clip(prob * rng.uniform(0.6, 1.4, n_owners), 0.0, 1.0)
+    return (255.0 - 127.0 * p).astype(np.float32)
+
+
+def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0) -> Frame:
+    """Renders the world as a camera records it at an instant.
+
+    Args:
+      scene: from ``build_scene``.
+      view: the camera (a non-zero distortion gives the distorted image).
+      when: timezone-aware capture instant. The sun comes from its UTC instant and the
+        scene's latitude/longitude; weather from (scene seed, local date); passing cars and
+        people from (scene seed, instant).
+      seed: sensor-noise seed of this frame (nothing else depends on it).
+
+    Returns:
+      ``Frame`` with rgb, depth, category and meta.
+    """
+    cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when)
+    state = TextureState(season=cond.grass, snow=cond.snow, foliage=cond.foliage, autumn=cond.autumn)
+    dyn, dyn_boxes, dyn_alpha = dynamic_quads(scene, when)
+    quads = QuadSet.concat([scene.static, dyn])
+    N = quads.n
+    alpha_idx = np.concatenate([scene.alpha_casters, scene.static.n + np.asarray(dyn_alpha, np.int64)]).astype(int)
+    boxes = np.concatenate([scene.buildings, scene.furniture_boxes,
+                            np.array(dyn_boxes, np.float64).reshape(-1, 2, 3)])
+    distorted = bool(np.any(view.distortion))
+    if distorted:
+        Kc, Wc, Hc, mapx, mapy = _canvas(view.K.tobytes(), view.distortion.tobytes(), view.width, view.height)
+    else:
+        Kc, Wc, Hc = view.K, view.width, view.height
+    R, t = view.R, view.t
+    C = -R.T @ t
+    S = np.array([[SS, 0, (SS - 1) / 2], [0, SS, (SS - 1) / 2], [0, 0, 1.0]])
+    Kss = S @ Kc
+    W2, H2 = Wc * SS, Hc * SS
+    gbuf = _rasterize(quads, scene, state, Kss, R, t, W2, H2)
+    qid = gbuf.qid
+    sun = cond.sun_dir
+    nrm = quads.normal
+    mat = quads.material
+    # Per-quad light coefficients (last entry: sky).
+    ndl = np.clip(nrm @ sun, 0.0, None)
+    foliage = (mat == Material.FOLIAGE) | (mat == Material.CUTOUT)
+    ndl = np.where(foliage, 0.55, ndl)
+    obj = quads.receiver < 0
+    if sun[2] > 0:
+        occl = _object_shadow(quads.shadow_pt[obj], sun, scene.buildings)
+        ndl[obj] *= 1.0 - occl
+    amb = np.where(foliage, 0.75, 0.55 + 0.45 * nrm[:, 2])
+    wet = np.ones(N)
+    if cond.wet:
+        wet = np.where(mat == Material.GROUND, 0.6, np.where(mat == Material.CAR, 1.0, 0.85))
+    direct_q = np.append(ndl * wet, 0.0).astype(np.float32)
+    amb_q = np.append(amb * wet, 0.0).astype(np.float32)
+    shadow = _cast_shadows(gbuf, quads, scene, state, sun, boxes, alpha_idx, Kss, R, t, W2, H2)
+    direct_ss = np.take(direct_q, qid)
+    direct_ss[shadow.view(bool)] = 0.0
+    amb_ss = np.take(amb_q, qid)
+    emis_ss = None
+    if cond.lamps_on or cond.sun_elevation_deg < 8:
+        aux = gbuf.albedo[..., 3]
+        mat_px = np.take(np.append(mat, -1).astype(np.int8), qid)
+        emis_ss = np.zeros((H2, W2), np.float32)
+        fac = mat_px == Material.FACADE
+        if fac.any():
+            owners = np.append(np.maximum(quads.owner, 0), 0)
+            thr = _window_threshold(int(owners.max()) + 1, scene.seed, when.date().toordinal(), cond.local_hour,
+                                    cond.window_lit_prob)
+            lit = fac & (aux >= np.take(thr, np.take(owners, qid)))
+            emis_ss[lit] = 0.04 + 0.08 * (aux[lit] - 128) / 127.0
+        if cond.lamps_on:
+            lamp = mat_px == Material.LAMP
+            emis_ss[lamp] = 2.5 * aux[lamp] / 255.0
+            car = (mat_px == Material.CAR) & (np.take(np.append(quads.emit, 0), qid) > 0)
+            emis_ss[car] = 2.5 * aux[car] / 255.0
+    # Down to the output resolution (box filter of the 2x render).
+    size = (Wc, Hc)
+    albedo = cv2.resize(gbuf.albedo[..., :3], size, interpolation=cv2.INTER_AREA)
+    albedo = cv2.GaussianBlur(albedo, (0, 0), 0.45)  # lens point-spread function
+    alb = _LIN[albedo]
+    direct = cv2.resize(direct_ss, size, interpolation=cv2.INTER_AREA)
+    ambient = cv2.resize(amb_ss, size, interpolation=cv2.INTER_AREA)
+    skyfrac = cv2.resize((qid == N).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    # Full-resolution geometry: depth from the plane of the surface seen at each pixel centre.
+    qfull = qid[SS // 2::SS, SS // 2::SS]
+    coef = np.vstack([gbuf.plane @ np.linalg.inv(Kc), np.zeros((1, 3))]).astype(np.float32)
+    uu = np.arange(Wc, dtype=np.float32)[None, :]
+    vv = np.arange(Hc, dtype=np.float32)[:, None]
+    iz = np.take(coef[:, 0], qfull) * uu + np.take(coef[:, 1], qfull) * vv + np.take(coef[:, 2], qfull)
+    with np.errstate(divide="ignore"):
+        depth = np.where(qfull == N, np.inf, 1.0 / np.maximum(iz, 1e-12)).astype(np.float32)
+    rays = np.stack(np.broadcast_arrays(uu, vv, np.ones_like(uu)), -1) @ np.linalg.inv(Kc).T.astype(np.float32)
+    light = direct[..., None] * cond.sun_rgb + ambient[..., None] * cond.sky_rgb
+    need_world = (cond.weather == "partly_cloudy" and sun[2] > 0) or cond.lamps_on
+    if need_world:
+        finite = np.isfinite(depth)
+        dcl = np.where(finite, depth, 0.0)[..., None]
+        Xw = (rays * dcl - t.astype(np.float32)) @ R.astype(np.float32)  # R^T (X_c - t)
+        if cond.weather == "partly_cloudy" and sun[2] > 0:
+            s = (CLOUD_ALTITUDE - Xw[..., 2]) / max(sun[2], 0.05)
+            dens = _cloud_density(scene.seed, Xw[..., 0] + sun[0] * s + cond.cloud_offset[0],
+                                  Xw[..., 1] + sun[1] * s + cond.cloud_offset[1], cond.cloud_cover)
+            dens = cv2.GaussianBlur(dens.astype(np.float32), (0, 0), 2.0)
+            light = light - (0.85 * dens * direct)[..., None] * cond.sun_rgb
+        if cond.lamps_on and len(scene.lamps):
+            near = scene.lamps[np.linalg.norm(scene.lamps - C, axis=1) < 60.0]
+            nfull = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)[qfull]
+            E = np.zeros((Hc, Wc), np.float32)
+            for L in near.astype(np.float32):
+                dvec = L - Xw
+                r2 = np.einsum("ijk,ijk->ij", dvec, dvec) + 0.3
+                E += 0.9 * np.clip(np.einsum("ijk,ijk->ij", dvec, nfull), 0, None) / (r2 * np.sqrt(r2))
+            light = light + (E * finite)[..., None] * np.float32([1.0, 0.78, 0.5])
+    rad = alb * light
+    if emis_ss is not None:
+        emis = cv2.resize(emis_ss, size, interpolation=cv2.INTER_AREA)
+        rad += emis[..., None] * (np.float32([1.0, 0.8, 0.55]) * 0.5 + alb * 2.0)
+    rows = np.flatnonzero(skyfrac.max(1) > 0)
+    if len(rows):
+        # The sky is smooth: evaluate it on every other pixel and interpolate.
+        r0, r1 = rows[0], rows[-1] + 1
+        sub = rays[r0:r1:2, ::2] @ R.astype(np.float32)
+        sub /= np.linalg.norm(sub, axis=-1, keepdims=True)
+        sky = _sky(cond, sub.reshape(-1, 3), C, scene.seed).reshape(sub.shape)
+        sky = cv2.resize(sky, (Wc, 2 * sub.shape[0]), interpolation=cv2.INTER_LINEAR)[: r1 - r0]
+        rad[r0:r1] += skyfrac[r0:r1, :, None] * sky
+    cat_q = np.append(quads.category, categories.SKY).astype(np.uint8)
+    if distorted:
+        rad = cv2.remap(rad, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        qd = cv2.remap(qfull, mapx, mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+        izd = np.take(coef[:, 0], qd) * mapx + np.take(coef[:, 1], qd) * mapy + np.take(coef[:, 2], qd)
+        with np.errstate(divide="ignore"):
+            depth = np.where(qd == N, np.inf, 1.0 / np.maximum(izd, 1e-12)).astype(np.float32)
+        category = np.take(cat_q, qd)
+    else:
+        category = np.take(cat_q, qfull)
+    rng = np.random.default_rng([seed & 0xFFFFFFFF, int(when.timestamp() * 1000) & 0xFFFFFFFF, scene.seed & 0xFFFF])
+    rgb, cam_meta = camera_effects.expose(rad.astype(np.float32), view.K, rng)
+    meta = cond.as_meta()
+    meta.update(cam_meta)
+    meta["n_dynamic_quads"] = int(dyn.n)
+    return Frame(rgb=rgb, depth=depth, category=category, meta=meta)
+
+
+# ---------------------------------------------------------------- contact sheets
+
+
+def contact_sheet(frames: list, labels: list[str], *, columns: int | None = None, width: int = 320) -> np.ndarray:
+    """Tiles frames (``Frame`` or RGB arrays) with a caption under each into one RGB image.
+
+    Args:
+      frames: frames or uint8 RGB images.
+      labels: one caption per frame.
+      columns: tiles per row (default: up to 4).
+      width: width of each tile in pixels.
+
+    Returns:
+      uint8 RGB image.
+    """
+    if len(frames) != len(labels):
+        raise ValueError(f"contact_sheet: {len(frames)} frames but {len(labels)} labels")
+    imgs = [f.rgb if isinstance(f, Frame) else np.asarray(f) for f in frames]
+    columns = columns or min(4, len(imgs))
+    tiles = []
+    for img, label in zip(imgs, labels):
+        h = int(round(img.shape[0] * width / img.shape[1]))
+        tile = np.full((h + 22, width, 3), 255, np.uint8)
+        tile[:h] = cv2.resize(img, (width, h), interpolation=cv2.INTER_AREA)
+        cv2.putText(tile, str(label), (4, h + 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    th = max(t.shape[0] for t in tiles)
+    tiles = [np.pad(t, ((0, th - t.shape[0]), (0, 0), (0, 0)), constant_values=255) for t in tiles]
+    while len(tiles) % columns:
+        tiles.append(np.full_like(tiles[0], 255))
+    rows = [np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)]
+    return np.vstack(rows)

@@ -1,0 +1,668 @@
+"""Procedural, band-limited textures of the synthetic world (stand-in for Sec. IV-A data).
+
+The paper's datasets are photographs of real streets (Webcam Clip Art, Extended CMU
+Seasons); SIFT (Sec. IV) finds interest points on facade details, windows, signs, foliage,
+cars and road markings. This module paints those details procedurally so that the rendered
+pixels carry the same kind of structure: every brick, window and sign is drawn with its own
+random variation (no two windows alike: curtains, blinds, objects), and every texture is
+pre-blurred (band-limited) before it is sampled, so that renders at sub-pixel offsets do
+not alias.
+
+Every function returns an RGBA ``uint8`` array ``(H, W, 4)``: RGB albedo in sRGB and a
+fourth *aux* channel whose meaning depends on the material (see ``scene.Material``):
+window ids on facades, snow susceptibility on ground and roofs, alpha on cut-out objects
+(trees, people), emission on lamps and car lights. Sizes are multiples of 16 so that the
+mip pyramid (``mip_pyramid``) keeps texel centres exactly aligned.
+"""
+
+from __future__ import annotations
+
+import string
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "TEXEL_M",
+    "value_noise",
+    "facade_texture",
+    "side_wall_texture",
+    "roof_texture",
+    "ground_texture",
+    "tree_structure",
+    "tree_texture",
+    "car_textures",
+    "person_texture",
+    "plain_texture",
+    "sign_texture",
+    "mip_pyramid",
+    "pad16",
+]
+
+TEXEL_M = 0.025  # metres per texel of near-camera surfaces (facades, road, sidewalks)
+_LETTERS = string.ascii_uppercase + string.digits
+
+
+def pad16(n: float) -> int:
+    """Round a texel count to a positive multiple of 16."""
+    return max(16, int(round(n / 16.0)) * 16)
+
+
+def value_noise(shape: tuple[int, int], rng: np.random.Generator, cell: float, octaves: int = 4) -> np.ndarray:
+    """Fractal value noise in [0, 1], smooth at scale ``cell`` texels.
+
+    Args:
+      shape: (H, W).
+      rng: random generator.
+      cell: size of the coarsest noise cell in texels.
+      octaves: number of octaves, each half the size and amplitude of the previous.
+
+    Returns:
+      float32 array of shape ``shape``.
+    """
+    h, w = shape
+    out = np.zeros((h, w), np.float32)
+    amp, total = 1.0, 0.0
+    for _ in range(octaves):
+        gh, gw = max(2, int(np.ceil(h / cell)) + 1), max(2, int(np.ceil(w / cell)) + 1)
+        grid = rng.random((gh, gw), dtype=np.float32)
+        out += amp * cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC)
+        total += amp
+        amp *= 0.5
+        cell = max(1.0, cell / 2.0)
+    return np.clip(out / total, 0.0, 1.0)
+
+
+def _finish(rgb: np.ndarray, aux: np.ndarray, blur: float = 0.6) -> np.ndarray:
+    """float RGB in [0,1] + uint8 aux -> band-limited RGBA uint8."""
+    rgb = np.clip(rgb, 0.0, 1.0)
+    if blur > 0:
+        rgb = cv2.GaussianBlur(rgb, (0, 0), blur)
+    out = np.empty(rgb.shape[:2] + (4,), np.uint8)
+    out[..., :3] = (rgb * 255.0 + 0.5).astype(np.uint8)
+    out[..., 3] = aux
+    return out
+
+
+def mip_pyramid(tex: np.ndarray, levels: int = 5) -> list[np.ndarray]:
+    """Gaussian pyramid (``cv2.pyrDown``) of a texture: each level band-limited, half size."""
+    pyr = [tex]
+    for _ in range(levels):
+        h, w = pyr[-1].shape[:2]
+        if h < 32 or w < 32 or h % 2 or w % 2:
+            break
+        pyr.append(cv2.pyrDown(pyr[-1]))
+    return pyr
+
+
+# ---------------------------------------------------------------- wall materials
+
+
+_BRICK_COLOURS = np.array(
+    [[0.55, 0.25, 0.18], [0.62, 0.33, 0.22], [0.45, 0.22, 0.17], [0.70, 0.50, 0.38], [0.50, 0.35, 0.30]], np.float32
+)
+_PLASTER_COLOURS = np.array(
+    [[0.85, 0.80, 0.68], [0.78, 0.72, 0.62], [0.70, 0.74, 0.76], [0.88, 0.78, 0.60], [0.75, 0.62, 0.55],
+     [0.66, 0.66, 0.62], [0.82, 0.84, 0.80]], np.float32
+)
+_SIDING_COLOURS = np.array(
+    [[0.90, 0.90, 0.86], [0.62, 0.70, 0.78], [0.86, 0.80, 0.55], [0.60, 0.68, 0.58], [0.78, 0.72, 0.66]], np.float32
+)
+
+
+def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float) -> np.ndarray:
+    """Wall albedo (H, W, 3) float32 for a style: brick, plaster, siding or concrete."""
+    ppm = 1.0 / texel
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    grain = value_noise((h, w), rng, cell=6, octaves=3)[..., None]
+    stain = value_noise((h, w), rng, cell=ppm * 3, octaves=3)[..., None]
+    if style == "brick":
+        base = _BRICK_COLOURS[rng.integers(len(_BRICK_COLOURS))]
+        course, brick_len = 0.075 * ppm, 0.215 * ppm
+        row = np.floor(yy / course)
+        xs = xx + (row % 2) * brick_len * 0.5
+        col = np.floor(xs / brick_len)
+        hsh = np.sin(row * 12.9898 + col * 78.233 + rng.random() * 100) * 43758.5453
+        hsh = (hsh - np.floor(hsh))[..., None].astype(np.float32)
+        rgb = base * (0.78 + 0.4 * hsh) * (0.92 + 0.16 * grain)
+        mortar = ((yy % course) < 0.012 * ppm + 0.6) | ((xs % brick_len) < 0.012 * ppm + 0.6)
+        rgb = np.where(mortar[..., None], np.float32([0.72, 0.70, 0.66]) * (0.9 + 0.2 * grain), rgb)
+    elif style == "siding":
+        base = _SIDING_COLOURS[rng.integers(len(_SIDING_COLOURS))]
+        board = 0.18 * ppm
+        frac = (yy % board) / board
+        shade = 0.8 + 0.2 * np.clip(frac * 3, 0, 1)
+        rgb = base * shade[..., None] * (0.95 + 0.08 * grain)
+    elif style == "concrete":
+        base = np.float32([0.62, 0.61, 0.58]) * (0.85 + 0.3 * rng.random())
+        panel_w, panel_h = rng.uniform(1.2, 3.0) * ppm, rng.uniform(1.0, 3.0) * ppm
+        joints = ((xx % panel_w) < 1.5) | ((yy % panel_h) < 1.5)
+        rgb = base * (0.85 + 0.25 * grain) * np.where(joints, 0.6, 1.0)[..., None]
+    else:  # plaster
+        base = _PLASTER_COLOURS[rng.integers(len(_PLASTER_COLOURS))]
+        rgb = base * (0.88 + 0.24 * grain)
+    # Weathering: large blotches and vertical rain streaks.
+    streak = cv2.resize(rng.random((1, max(2, w // 6)), dtype=np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    rgb = rgb * (0.85 + 0.25 * stain) * (0.93 + 0.1 * streak[..., None])
+    return rgb.astype(np.float32)
+
+
+def _rand_colour(rng: np.random.Generator, sat: float = 0.6) -> np.ndarray:
+    hue = rng.random()
+    c = np.array([abs(hue * 6 - 3) - 1, 2 - abs(hue * 6 - 2), 2 - abs(hue * 6 - 4)], np.float32)
+    c = np.clip(c, 0, 1)
+    v = rng.uniform(0.25, 0.9)
+    return (v * (1 - sat + sat * c)).astype(np.float32)
+
+
+def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int, wid: int,
+            rng: np.random.Generator, frame_col: np.ndarray) -> None:
+    """Paints one window with its own clutter in place; marks its glass in ``aux`` with ``wid``."""
+    h, w = rgb.shape[:2]
+    x1, y1 = min(w, x0 + ww), min(h, y0 + wh)
+    if x1 - x0 < 6 or y1 - y0 < 6:
+        return
+    fw = max(2, int(0.05 * ww))
+    rgb[y0:y1, x0:x1] = frame_col
+    gx0, gy0, gx1, gy1 = x0 + fw, y0 + fw, x1 - fw, y1 - fw
+    gh, gw_ = gy1 - gy0, gx1 - gx0
+    # Glass: dark interior with a reflected-sky gradient, different for each window.
+    tint = np.float32([0.10, 0.12, 0.15]) + rng.uniform(0, 0.08, 3).astype(np.float32)
+    grad = np.linspace(rng.uniform(0.3, 1.4), rng.uniform(0.3, 1.0), gh, dtype=np.float32)[:, None, None]
+    glass = tint * grad * np.ones((gh, gw_, 1), np.float32)
+    kind = rng.choice(["curtains", "blinds", "objects", "dark", "curtains", "plants"])
+    if kind == "curtains":
+        col = _rand_colour(rng, 0.5)
+        freq = rng.uniform(0.6, 1.4)
+        cw = max(1, int(gw_ * rng.uniform(0.15, 0.45)))
+        glass[:, :cw] = col * (0.8 + 0.2 * np.sin(np.arange(cw) * freq))[None, :, None]
+        if rng.random() < 0.7:
+            cw2 = max(1, int(gw_ * rng.uniform(0.15, 0.45)))
+            glass[:, gw_ - cw2:] = col * 0.95 * (0.8 + 0.2 * np.sin(np.arange(cw2) * freq))[None, :, None]
+    elif kind == "blinds":
+        down = int(gh * rng.uniform(0.2, 1.0))
+        col = np.float32([0.85, 0.83, 0.78]) * rng.uniform(0.6, 1.0)
+        slat = np.where((np.arange(down) % 4) < 3, 1.0, 0.75).astype(np.float32)[:, None, None]
+        glass[:down] = col * slat
+    elif kind in ("objects", "plants"):
+        for _ in range(rng.integers(1, 5)):
+            ox, oy = rng.integers(0, max(1, gw_ - 4)), rng.integers(gh // 3, max(gh // 3 + 1, gh - 4))
+            ow, oh = rng.integers(3, max(4, gw_ // 3)), rng.integers(3, max(4, gh // 3))
+            col = _rand_colour(rng, 0.7) if kind == "objects" else np.float32([0.1, 0.35, 0.1]) * rng.uniform(0.6, 1.3)
+            if kind == "plants":
+                cv2.ellipse(glass, (int(ox + ow // 2), int(oy)), (int(ow // 2 + 1), int(oh // 2 + 1)), 0, 0, 360,
+                            col.tolist(), -1)
+            else:
+                glass[oy:oy + oh, ox:ox + ow] = col
+    rgb[gy0:gy1, gx0:gx1] = glass
+    # aux = 128 + a lighting rank: a window is lit at night when its rank beats the hour's
+    # threshold. Interpolated texels between glass (>= 128) and wall (0) never exceed the
+    # window's own value, so unlit windows cannot grow lit outlines.
+    aux[gy0:gy1, gx0:gx1] = 128 + (wid * 37 + int(rng.integers(0, 127))) % 127
+    # Mullions: a cross or a vertical bar, chosen per window.
+    m = rng.integers(0, 3)
+    bw = max(1, fw // 2)
+    if m >= 1:
+        cx = (gx0 + gx1) // 2
+        rgb[gy0:gy1, cx - bw:cx + bw] = frame_col
+    if m == 2:
+        cy = gy0 + int(gh * rng.uniform(0.3, 0.6))
+        rgb[cy - bw:cy + bw, gx0:gx1] = frame_col
+    # Sill and lintel.
+    rgb[y1:min(h, y1 + max(2, fw)), max(0, x0 - fw):min(w, x1 + fw)] = frame_col * 0.85
+    rgb[max(0, y0 - fw):y0, max(0, x0 - fw):min(w, x1 + fw)] = frame_col * 0.7
+
+
+def _put_text(img: np.ndarray, text: str, org, font: int, scale: float, colour: np.ndarray, thick: int) -> None:
+    """``cv2.putText`` on a float [0, 1] image (OpenCV 5 draws text on 8-bit images only)."""
+    canvas = np.zeros(img.shape[:2], np.uint8)
+    cv2.putText(canvas, text, org, font, scale, 255, thick, cv2.LINE_AA)
+    a = (canvas.astype(np.float32) / 255.0)[..., None]
+    img[:] = img * (1 - a) + np.asarray(colour, np.float32) * a
+
+
+def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
+    """A shop sign: a coloured panel with random letters (float RGB)."""
+    bg = _rand_colour(rng, 0.8)
+    fg = np.float32([1, 1, 1]) - bg * rng.uniform(0.6, 1.0)
+    img = np.ones((h, w, 3), np.float32) * bg
+    n = int(rng.integers(3, 10))
+    text = "".join(rng.choice(list(_LETTERS), n))
+    font = int(rng.choice([cv2.FONT_HERSHEY_SIMPLEX, cv2.FONT_HERSHEY_DUPLEX, cv2.FONT_HERSHEY_TRIPLEX,
+                           cv2.FONT_HERSHEY_COMPLEX]))
+    (tw, th), _ = cv2.getTextSize(text, font, 1.0, 2)
+    scale = min(0.9 * w / max(tw, 1), 0.7 * h / max(th, 1))
+    thick = max(1, int(scale * 2))
+    (tw, th), _ = cv2.getTextSize(text, font, scale, thick)
+    _put_text(img, text, ((w - tw) // 2, (h + th) // 2), font, scale, fg, thick)
+    return img
+
+
+def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, style: str,
+                   shopfront: bool, texel: float = TEXEL_M, snow: int = 0) -> np.ndarray:
+    """Street-facing facade of one building.
+
+    Args:
+      seed: per-building seed.
+      width_m, height_m: facade size in metres.
+      floor_h: storey height in metres.
+      style: ``"brick"``, ``"plaster"``, ``"siding"`` or ``"concrete"``.
+      shopfront: a shop window with a sign on the ground floor (urban) instead of a door
+        and windows (residential).
+      texel: metres per texel.
+      snow: unused (facades are vertical); kept so that every texture shares one signature.
+
+    Returns:
+      RGBA uint8 whose aux channel holds 128 + a lighting rank (0..126) on glass, 0 on walls.
+    """
+    del snow
+    rng = np.random.default_rng(seed)
+    W, H = pad16(width_m / texel), pad16(height_m / texel)
+    ppm = W / width_m
+    rgb = _wall(style, H, W, rng, 1.0 / ppm)
+    aux = np.zeros((H, W), np.uint8)
+    frame_col = (np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else _rand_colour(rng, 0.3) * 0.7)
+    n_floors = max(1, int(height_m / floor_h))
+    win_w = rng.uniform(0.8, 1.4)
+    win_h = rng.uniform(1.2, 1.7) if style != "siding" else rng.uniform(1.0, 1.4)
+    bay = win_w + rng.uniform(0.8, 2.0)
+    n_cols = max(1, int((width_m - 0.6) / bay))
+    margin = (width_m - n_cols * bay) / 2
+    wid = 1
+    start_floor = 0
+    if shopfront:
+        start_floor = 1
+        gh = int(min(floor_h, height_m) * ppm)
+        y_top = H - gh
+        # Shop window with a display, a door and a sign above.
+        sx0, sx1 = int(0.3 * ppm), W - int(0.3 * ppm)
+        door_w = int(1.0 * ppm)
+        door_x = int(rng.uniform(0.3, max(0.31, width_m - 1.4)) * ppm)
+        sh_top = y_top + int(0.9 * ppm)
+        for (a, b) in ((sx0, door_x), (door_x + door_w, sx1)):
+            if b - a > 20:
+                _window(rgb, aux, a, sh_top, b - a, H - int(0.4 * ppm) - sh_top, wid % 255 + 1, rng,
+                        np.float32([0.15, 0.15, 0.16]))
+                wid += 1
+        door_col = _rand_colour(rng, 0.4) * 0.6
+        rgb[sh_top:H, door_x:door_x + door_w] = door_col
+        rgb[sh_top + 8:H - 40, door_x + 8:door_x + door_w - 8] *= 0.6
+        sign_h = int(0.6 * ppm)
+        sign_w = int(rng.uniform(0.5, 0.9) * (sx1 - sx0))
+        sx = sx0 + int(rng.uniform(0, 1) * (sx1 - sx0 - sign_w))
+        rgb[y_top + int(0.15 * ppm):y_top + int(0.15 * ppm) + sign_h, sx:sx + sign_w] = sign_texture(rng, sign_w, sign_h)
+    else:
+        door_w, door_h = int(1.0 * ppm), int(2.2 * ppm)
+        dx = int(rng.uniform(0.4, max(0.41, width_m - 1.5)) * ppm)
+        rgb[H - door_h:H, dx:dx + door_w] = _rand_colour(rng, 0.5) * 0.7
+        rgb[H - door_h + 10:H - 10, dx + 8:dx + door_w - 8] *= 0.75
+        rgb[H - door_h - 6:H - door_h, dx - 6:dx + door_w + 6] = frame_col * 0.8
+        cv2.circle(rgb, (dx + door_w - 12, H - door_h // 2), 3, (0.8, 0.7, 0.3), -1)
+    for f in range(start_floor, n_floors):
+        y_floor_bottom = H - int(f * floor_h * ppm)
+        y0 = y_floor_bottom - int((0.9 + win_h) * ppm)
+        if y0 < int(0.3 * ppm):
+            break
+        for c in range(n_cols):
+            if f == 0 and not shopfront and abs((margin + c * bay + bay / 2) * ppm - (dx + door_w / 2)) < bay * ppm * 0.6:
+                continue
+            x0 = int((margin + c * bay + (bay - win_w) / 2) * ppm)
+            _window(rgb, aux, x0, y0, int(win_w * ppm), int(win_h * ppm), (wid - 1) % 255 + 1, rng, frame_col)
+            wid += 1
+            if rng.random() < 0.06:  # an air conditioner under some windows
+                ax0, ay0 = x0 + int(0.1 * ppm), y0 + int(win_h * ppm) + 6
+                rgb[ay0:ay0 + int(0.4 * ppm), ax0:ax0 + int(0.6 * ppm)] = np.float32([0.75, 0.75, 0.72])
+                rgb[ay0 + 4:ay0 + int(0.4 * ppm) - 4:3, ax0 + 4:ax0 + int(0.6 * ppm) - 4] *= 0.6
+        if f > start_floor and rng.random() < 0.5:  # string course between floors
+            yb = y_floor_bottom - 4
+            rgb[yb:yb + 6] = rgb[yb:yb + 6] * 0.7 + frame_col * 0.3
+    # Cornice at the top and a drain pipe.
+    ch = int(rng.uniform(0.2, 0.6) * ppm)
+    rgb[:ch] = rgb[:ch] * 0.5 + frame_col * 0.4
+    rgb[ch:ch + 3] *= 0.55
+    if rng.random() < 0.6:
+        px = int(rng.choice([0.15, width_m - 0.25]) * ppm)
+        rgb[:, px:px + 4] = np.float32([0.35, 0.36, 0.36])
+    if rng.random() < 0.35:  # graffiti-ish tag or posters near the ground
+        for _ in range(rng.integers(1, 4)):
+            pw, ph = int(rng.uniform(0.4, 0.8) * ppm), int(rng.uniform(0.5, 1.0) * ppm)
+            px, py = int(rng.uniform(0, width_m - 0.8) * ppm), H - int(rng.uniform(1.0, 2.2) * ppm)
+            if py + ph < H and px + pw < W and aux[py:py + ph, px:px + pw].max() == 0:
+                rgb[py:py + ph, px:px + pw] = sign_texture(rng, pw, ph)
+    return _finish(rgb, aux, blur=0.7)
+
+
+def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, texel: float = 0.04,
+                      snow: int = 0) -> np.ndarray:
+    """A side (party) wall: the building's material with few, sparse windows."""
+    del snow
+    rng = np.random.default_rng(seed)
+    W, H = pad16(width_m / texel), pad16(height_m / texel)
+    rgb = _wall(style, H, W, rng, width_m / W)
+    aux = np.zeros((H, W), np.uint8)
+    ppm = W / width_m
+    for k in range(int(rng.integers(0, 4))):
+        x0 = int(rng.uniform(0.5, max(0.6, width_m - 1.5)) * ppm)
+        y0 = int(rng.uniform(0.5, max(0.6, height_m - 2.5)) * ppm)
+        _window(rgb, aux, x0, y0, int(0.8 * ppm), int(1.2 * ppm), 200 + k, rng, np.float32([0.8, 0.8, 0.78]))
+    return _finish(rgb, aux, blur=0.7)
+
+
+def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel: float = 0.08) -> np.ndarray:
+    """Flat roof (tar/gravel); aux = snow susceptibility (high everywhere)."""
+    rng = np.random.default_rng(seed)
+    W, H = pad16(width_m / texel), pad16(depth_m / texel)
+    g = value_noise((H, W), rng, cell=8, octaves=3)[..., None]
+    rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
+    aux = (200 + 55 * value_noise((H, W), rng, cell=10, octaves=2)).astype(np.uint8)
+    rgb = _apply_snow(rgb, aux, snow, rng)
+    return _finish(rgb, aux, blur=0.6)
+
+
+def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, rng: np.random.Generator) -> np.ndarray:
+    """Covers texels whose susceptibility (aux) beats the snow level (0..4) with snow."""
+    if snow <= 0:
+        return rgb
+    h, w = aux.shape
+    thr = {1: 225, 2: 190, 3: 120, 4: 40}[int(min(snow, 4))]
+    patch = value_noise((h, w), rng, cell=24, octaves=3)
+    cover = np.clip((aux.astype(np.float32) + 90 * (patch - 0.5) - thr) / 25.0, 0.0, 1.0)[..., None]
+    snow_col = np.float32([0.93, 0.94, 0.97]) * (0.92 + 0.08 * value_noise((h, w), rng, cell=5, octaves=2))[..., None]
+    return rgb * (1 - cover) + snow_col * cover
+
+
+def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lanes: int = 2,
+                   season: int = 1, snow: int = 0, crosswalk: bool = False, texel: float = TEXEL_M) -> np.ndarray:
+    """A ground tile: rows run along world -y (north at the top), columns along +x (east).
+
+    Args:
+      seed: per-tile seed.
+      kind: ``"road"`` (asphalt, lane markings), ``"sidewalk"`` (concrete slabs with a curb
+        on the road side), ``"grass"`` (lawn, with paths/driveways), ``"plaza"``.
+      length_m, width_m: size along x and along y.
+      lanes: number of lanes (road only).
+      season: grass colour state 0 winter, 1 spring/summer, 2 late summer, 3 autumn.
+      snow: snow level 0..4 (0 none).
+      crosswalk: paint a zebra crossing (road only).
+      texel: metres per texel.
+
+    Returns:
+      RGBA uint8 whose aux channel holds snow susceptibility (road 0..60, sidewalk
+      60..160, grass 200..255).
+    """
+    rng = np.random.default_rng(seed)
+    W, H = pad16(length_m / texel), pad16(width_m / texel)
+    ppm = W / length_m
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    fine = value_noise((H, W), rng, cell=3, octaves=2)[..., None]
+    blot = value_noise((H, W), rng, cell=2.5 * ppm, octaves=3)[..., None]
+    if kind == "road":
+        base = np.float32([0.30, 0.30, 0.31]) * rng.uniform(0.85, 1.15)
+        speck = (rng.random((H, W), dtype=np.float32) ** 6)[..., None]
+        rgb = base * (0.75 + 0.35 * fine + 0.4 * speck) * (0.85 + 0.3 * blot)
+        aux = (10 + 40 * blot[..., 0]).astype(np.uint8)
+        # Patches and cracks.
+        for _ in range(rng.integers(0, 4)):
+            pw, ph = int(rng.uniform(0.5, 3) * ppm), int(rng.uniform(0.5, 2) * ppm)
+            px, py = rng.integers(0, W - pw), rng.integers(0, H - ph)
+            rgb[py:py + ph, px:px + pw] *= rng.uniform(0.7, 1.2)
+        for _ in range(rng.integers(2, 8)):
+            pts = np.cumsum(rng.normal(0, 0.25 * ppm, (rng.integers(3, 9), 2)), axis=0) + [rng.integers(0, W), rng.integers(0, H)]
+            cv2.polylines(rgb, [pts.astype(np.int32)], False, (0.12, 0.12, 0.12), 2, cv2.LINE_AA)
+        if rng.random() < 0.4:  # manhole cover
+            cx, cy, r = rng.integers(int(ppm), W - int(ppm)), rng.integers(int(ppm), H - int(ppm)), int(0.35 * ppm)
+            cv2.circle(rgb, (int(cx), int(cy)), r, (0.22, 0.21, 0.2), -1, cv2.LINE_AA)
+            for k in range(-r, r, 6):
+                cv2.line(rgb, (int(cx - r), int(cy + k)), (int(cx + r), int(cy + k)), (0.3, 0.29, 0.28), 1)
+            cv2.circle(rgb, (int(cx), int(cy)), r, (0.15, 0.15, 0.15), 2, cv2.LINE_AA)
+        lane_w = H / lanes
+        paint_w = max(3, int(0.12 * ppm))
+        white = np.float32([0.85, 0.85, 0.82])
+        yellow = np.float32([0.85, 0.70, 0.20])
+        wear = (0.75 + 0.25 * value_noise((H, W), rng, cell=12, octaves=2))[..., None]
+        paint = np.zeros((H, W), np.float32)
+        col = np.zeros((H, W, 3), np.float32)
+        for k in range(1, lanes):
+            yc = int(k * lane_w)
+            if lanes == 2:  # double yellow centre line
+                for off in (-paint_w, paint_w):
+                    paint[yc + off - paint_w // 2:yc + off + paint_w // 2 + 1] = 1
+                    col[yc + off - paint_w // 2:yc + off + paint_w // 2 + 1] = yellow
+            else:
+                dash = ((xx[0] % (6 * ppm)) < 3 * ppm).astype(np.float32)
+                paint[yc - paint_w // 2:yc + paint_w // 2 + 1] = dash
+                col[yc - paint_w // 2:yc + paint_w // 2 + 1] = white
+        for yc in (int(0.3 * ppm), H - int(0.3 * ppm)):  # edge lines
+            paint[yc - paint_w // 2:yc + paint_w // 2 + 1] = 1
+            col[yc - paint_w // 2:yc + paint_w // 2 + 1] = white
+        if crosswalk:
+            x0 = int(rng.uniform(0.2, 0.5) * W)
+            stripe = ((yy[:, 0] % (1.0 * ppm)) < 0.5 * ppm).astype(np.float32)
+            paint[:, x0:x0 + int(3 * ppm)] = np.maximum(paint[:, x0:x0 + int(3 * ppm)], stripe[:, None])
+            col[:, x0:x0 + int(3 * ppm)] = white
+        p = (paint * wear[..., 0])[..., None]
+        rgb = rgb * (1 - p) + col * p * (0.9 + 0.1 * fine)
+    elif kind == "sidewalk":
+        base = np.float32([0.66, 0.64, 0.60]) * rng.uniform(0.85, 1.1)
+        slab = rng.uniform(1.2, 1.8) * ppm
+        joint = ((xx % slab) < 2) | ((yy % slab) < 2)
+        sid = np.floor(xx / slab) * 7 + np.floor(yy / slab)
+        hsh = np.sin(sid * 12.9898 + seed % 97) * 43758.5453
+        hsh = (hsh - np.floor(hsh))[..., None]
+        rgb = base * (0.85 + 0.15 * hsh) * (0.85 + 0.25 * fine) * (0.85 + 0.25 * blot) * np.where(joint, 0.7, 1.0)[..., None]
+        aux = (70 + 80 * blot[..., 0]).astype(np.uint8)
+        curb = int(0.2 * ppm)  # curb on the road side: the tile's top rows (north) by convention
+        rgb[:curb] = np.float32([0.75, 0.74, 0.71]) * (0.9 + 0.1 * fine[:curb])
+        rgb[curb:curb + 2] *= 0.6
+        for _ in range(rng.integers(0, 5)):  # stains, gum
+            cx, cy = rng.integers(0, W), rng.integers(curb, H)
+            cv2.circle(rgb, (int(cx), int(cy)), int(rng.integers(2, 12)), (0.35, 0.34, 0.33), -1, cv2.LINE_AA)
+    else:  # grass / lawn
+        greens = {0: [0.42, 0.38, 0.26], 1: [0.26, 0.42, 0.16], 2: [0.34, 0.42, 0.18], 3: [0.45, 0.40, 0.20]}
+        base = np.float32(greens[int(season)])
+        blade = rng.random((H, W), dtype=np.float32)[..., None]
+        rgb = base * (0.7 + 0.3 * fine + 0.25 * blade) * (0.8 + 0.4 * blot)
+        aux = (205 + 50 * blot[..., 0]).astype(np.uint8)
+        if rng.random() < 0.5:  # a path or driveway across the lawn
+            px, pw = rng.integers(0, max(1, W - int(3 * ppm))), int(rng.uniform(1.0, 3.0) * ppm)
+            rgb[:, px:px + pw] = np.float32([0.58, 0.56, 0.52]) * (0.85 + 0.25 * fine[:, px:px + pw])
+            aux[:, px:px + pw] = 90
+        if season == 3:
+            leaves = (rng.random((H, W)) < 0.01)
+            rgb[leaves] = np.float32([0.65, 0.35, 0.1])
+    rgb = _apply_snow(rgb, aux, snow, rng)
+    return _finish(rgb, aux, blur=0.6)
+
+
+# ---------------------------------------------------------------- trees
+
+
+def tree_structure(seed: int, height_m: float, crown_r_m: float, texel: float = 0.03) -> dict:
+    """The season-independent part of a tree billboard: trunk/branches and leaf clusters.
+
+    Returns:
+      A dict with ``wood`` (H, W) float32 coverage of trunk and branches, ``leaf_rank``
+      (H, W) uint8 (a leaf texel appears when its rank is below the season's density),
+      ``leaf_shade`` (H, W) float32 and ``leaf_hue`` (H, W) float32 per-leaf variation,
+      ``bark`` (3,) colour.
+    """
+    rng = np.random.default_rng(seed)
+    width_m = 2 * crown_r_m + 0.4
+    W, H = pad16(width_m / texel), pad16(height_m / texel)
+    ppm = W / width_m
+    wood = np.zeros((H, W), np.float32)
+    trunk_top = H - int(rng.uniform(0.3, 0.45) * height_m * ppm)
+    cx = W // 2
+    tw = max(3, int(rng.uniform(0.12, 0.2) * ppm))
+    cv2.line(wood, (cx, H), (cx, trunk_top), 1.0, tw, cv2.LINE_AA)
+
+    def branch(x, y, ang, length, th, depth):
+        if depth == 0 or length < 6:
+            return
+        x2, y2 = x + length * np.sin(ang), y - length * np.cos(ang)
+        cv2.line(wood, (int(x), int(y)), (int(x2), int(y2)), 1.0, max(1, int(th)), cv2.LINE_AA)
+        for _ in range(2 if depth > 1 else 3):
+            branch(x2, y2, ang + rng.normal(0, 0.55), length * rng.uniform(0.55, 0.8), th * 0.65, depth - 1)
+
+    crown_h = trunk_top
+    for _ in range(int(rng.integers(3, 6))):
+        branch(cx, trunk_top, rng.normal(0, 0.6), crown_h * rng.uniform(0.3, 0.45), tw * 0.7, 5)
+    wood = np.clip(wood, 0, 1)
+    # Leaf clusters: many blobs inside the crown ellipse, each with its own rank and shade.
+    rank = np.full((H, W), 255, np.uint8)
+    shade = np.zeros((H, W), np.float32)
+    hue = np.zeros((H, W), np.float32)
+    ccx, ccy = cx, trunk_top * 0.5
+    ax, ay = W * 0.45, trunk_top * 0.52
+    n = int(ax * ay / 9)
+    for _ in range(n):
+        r = np.sqrt(rng.random())
+        a = rng.uniform(0, 2 * np.pi)
+        px, py = int(ccx + ax * r * np.cos(a)), int(ccy + ay * r * np.sin(a))
+        rad = int(rng.integers(2, 6))
+        rk = int(rng.integers(0, 250))
+        cv2.circle(rank, (px, py), rad, rk, -1)
+        cv2.circle(shade, (px, py), rad, float(0.55 + 0.45 * (1 - r) * rng.uniform(0.6, 1.0) + 0.2 * (py < ccy)), -1)
+        cv2.circle(hue, (px, py), rad, float(rng.random()), -1)
+    return {"wood": wood, "leaf_rank": rank, "leaf_shade": shade, "leaf_hue": hue,
+            "bark": np.float32([0.30, 0.25, 0.20]) * rng.uniform(0.7, 1.2)}
+
+
+def tree_texture(structure: dict, density: float, autumn: float, snow: int = 0) -> np.ndarray:
+    """Composes a tree billboard for a season.
+
+    Args:
+      structure: from ``tree_structure``.
+      density: fraction of leaf texels present (0 bare winter tree .. 1 full summer crown).
+      autumn: 0 green .. 1 full autumn colours (yellow, orange, red, brown).
+      snow: snow level; whitens the upper side of branches when > 0.
+
+    Returns:
+      RGBA uint8, aux = alpha.
+    """
+    wood, rank, shade, hue = structure["wood"], structure["leaf_rank"], structure["leaf_shade"], structure["leaf_hue"]
+    leaf = (rank.astype(np.float32) < density * 250.0).astype(np.float32)
+    green = np.stack([0.16 + 0.08 * hue, 0.30 + 0.14 * hue, 0.08 + 0.05 * hue], -1)
+    fall = np.stack([0.55 + 0.25 * hue, 0.20 + 0.35 * hue, 0.05 + 0.04 * hue], -1)
+    # Each leaf turns at its own time: leaves with low hue change first.
+    turn = np.clip((autumn * 1.4 - hue) * 4.0, 0.0, 1.0)[..., None]
+    leaf_col = (green * (1 - turn) + fall * turn) * shade[..., None]
+    bark = structure["bark"]
+    if snow > 0:
+        bark = bark * 0.5 + 0.45
+    rgb = np.where(leaf[..., None] > 0, leaf_col, bark * (0.7 + 0.3 * wood[..., None]))
+    alpha = np.maximum(leaf, wood)
+    return _finish(rgb.astype(np.float32), (alpha * 255).astype(np.uint8), blur=0.5)
+
+
+# ---------------------------------------------------------------- cars, people, furniture
+
+
+_CAR_COLOURS = np.array(
+    [[0.85, 0.85, 0.85], [0.08, 0.08, 0.09], [0.45, 0.46, 0.48], [0.60, 0.10, 0.10], [0.10, 0.18, 0.45],
+     [0.75, 0.75, 0.78], [0.20, 0.30, 0.22], [0.80, 0.65, 0.20], [0.35, 0.20, 0.15]], np.float32
+)
+
+
+def car_textures(seed: int, length_m: float, width_m: float, body_h: float, cabin_h: float,
+                 texel: float = 0.03) -> dict:
+    """Textures of one car's box faces: ``side_l``, ``side_r``, ``front``, ``back``, ``top``,
+    ``cabin_side_l/r``, ``cabin_front``, ``cabin_back``, ``cabin_top``. Aux = light emission."""
+    rng = np.random.default_rng(seed)
+    body = _CAR_COLOURS[rng.integers(len(_CAR_COLOURS))] * rng.uniform(0.85, 1.1)
+
+    def panel(wm, hm):
+        W, H = pad16(wm / texel), pad16(hm / texel)
+        g = value_noise((H, W), rng, cell=20, octaves=2)[..., None]
+        grad = np.linspace(1.1, 0.75, H, dtype=np.float32)[:, None, None]
+        return body * (0.92 + 0.12 * g) * grad, np.zeros((H, W), np.uint8), W / wm
+
+    out = {}
+    for side in ("side_l", "side_r"):
+        rgb, aux, ppm = panel(length_m, body_h)
+        H, W = aux.shape
+        for wx in (0.18, 0.78):  # wheels
+            cx = int(wx * W) if side == "side_l" else int((1 - wx) * W)
+            cv2.circle(rgb, (cx, H), int(0.36 * ppm), (0.05, 0.05, 0.05), -1, cv2.LINE_AA)
+            cv2.circle(rgb, (cx, H), int(0.2 * ppm), (0.55, 0.55, 0.56), -1, cv2.LINE_AA)
+        for dx in (0.38, 0.6):
+            cv2.line(rgb, (int(dx * W), 0), (int(dx * W), H), (0.05, 0.05, 0.05), 1, cv2.LINE_AA)
+            cv2.line(rgb, (int((dx + 0.12) * W), int(0.25 * H)), (int((dx + 0.17) * W), int(0.25 * H)),
+                     (0.2, 0.2, 0.2), 2)
+        rgb[H - int(0.12 * ppm):] *= 0.35
+        out[side] = _finish(rgb, aux)
+    for end in ("front", "back"):
+        rgb, aux, ppm = panel(width_m, body_h)
+        H, W = aux.shape
+        lc = (0.95, 0.95, 0.85) if end == "front" else (0.7, 0.05, 0.05)
+        for lx in (0.12, 0.88):
+            cv2.ellipse(rgb, (int(lx * W), int(0.3 * H)), (int(0.1 * W), int(0.1 * H)), 0, 0, 360, lc, -1, cv2.LINE_AA)
+            cv2.ellipse(aux, (int(lx * W), int(0.3 * H)), (int(0.1 * W), int(0.1 * H)), 0, 0, 360,
+                        255 if end == "front" else 140, -1)
+        rgb[int(0.55 * H):int(0.8 * H), int(0.38 * W):int(0.62 * W)] = (0.9, 0.9, 0.85)  # plate
+        _put_text(rgb, "".join(rng.choice(list(_LETTERS), 5)), (int(0.39 * W), int(0.76 * H)),
+                  cv2.FONT_HERSHEY_SIMPLEX, 0.25 * W / 60, np.float32([0.1, 0.1, 0.2]), 1)
+        if end == "front":
+            rgb[int(0.35 * H):int(0.5 * H), int(0.3 * W):int(0.7 * W)] = 0.1
+        out[end] = _finish(rgb, aux)
+    rgb, aux, _ = panel(length_m, width_m)
+    out["top"] = _finish(rgb, aux)
+    glass = np.float32([0.12, 0.14, 0.17])
+    for name, (wm, hm) in {"cabin_side_l": (length_m * 0.55, cabin_h), "cabin_side_r": (length_m * 0.55, cabin_h),
+                           "cabin_front": (width_m * 0.9, cabin_h), "cabin_back": (width_m * 0.9, cabin_h)}.items():
+        rgb, aux, ppm = panel(wm, hm)
+        H, W = aux.shape
+        b = max(2, int(0.06 * ppm))
+        sky = np.linspace(0.9, 0.5, H - 2 * b, dtype=np.float32)[:, None, None]
+        rgb[b:H - b, b:W - b] = glass * (1 + sky)
+        if name.startswith("cabin_side"):
+            rgb[b:H - b, W // 2 - b:W // 2 + b] = body * 0.5
+            if rng.random() < 0.5:  # a head in the car
+                cv2.circle(rgb, (int(W * rng.uniform(0.2, 0.4)), int(H * 0.55)), int(0.1 * ppm), (0.2, 0.15, 0.12), -1)
+        out[name] = _finish(rgb, aux)
+    rgb, aux, _ = panel(length_m * 0.55, width_m * 0.9)
+    out["cabin_top"] = _finish(rgb, aux)
+    return out
+
+
+def person_texture(seed: int, texel: float = 0.02) -> np.ndarray:
+    """A pedestrian cut-out 0.7 m x 1.75 m: head, torso, legs; aux = alpha."""
+    rng = np.random.default_rng(seed)
+    W, H = pad16(0.7 / texel), pad16(1.75 / texel)
+    rgb = np.zeros((H, W, 3), np.float32)
+    a = np.zeros((H, W), np.uint8)
+    cx = W // 2
+    skin = np.float32([0.85, 0.65, 0.5]) * rng.uniform(0.35, 1.05)
+    top = _rand_colour(rng, 0.7)
+    legs = np.float32([0.15, 0.18, 0.3]) * rng.uniform(0.5, 1.5) if rng.random() < 0.6 else _rand_colour(rng, 0.4)
+    hr = int(0.11 / 1.75 * H)
+    cv2.circle(rgb, (cx, hr + 2), hr, skin.tolist(), -1, cv2.LINE_AA)
+    cv2.circle(a, (cx, hr + 2), hr, 255, -1)
+    cv2.ellipse(rgb, (cx, hr - 2), (hr, hr // 2 + 2), 0, 180, 360, (0.1, 0.07, 0.05), -1)
+    sh = int(0.22 * W)
+    torso = np.array([[cx - sh, 2 * hr + 6], [cx + sh, 2 * hr + 6], [cx + sh - 2, int(0.55 * H)], [cx - sh + 2, int(0.55 * H)]])
+    cv2.fillPoly(rgb, [torso], top.tolist())
+    cv2.fillPoly(a, [torso], 255)
+    for sgn in (-1, 1):  # arms and legs
+        cv2.line(rgb, (cx + sgn * sh, 2 * hr + 10), (cx + sgn * (sh + 4), int(0.52 * H)), (top * 0.8).tolist(), 7)
+        cv2.line(a, (cx + sgn * sh, 2 * hr + 10), (cx + sgn * (sh + 4), int(0.52 * H)), 255, 7)
+        lx = cx + sgn * int(rng.uniform(0.04, 0.12) * W)
+        cv2.line(rgb, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), legs.tolist(), 9)
+        cv2.line(a, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), 255, 9)
+        cv2.line(rgb, (lx, H - 4), (lx + 6, H - 4), (0.05, 0.05, 0.05), 5)
+    if rng.random() < 0.3:  # a bag
+        cv2.rectangle(rgb, (cx + sh, int(0.45 * H)), (cx + sh + 10, int(0.6 * H)), _rand_colour(rng, 0.5).tolist(), -1)
+        cv2.rectangle(a, (cx + sh, int(0.45 * H)), (cx + sh + 10, int(0.6 * H)), 255, -1)
+    return _finish(rgb, a, blur=0.5)
+
+
+def plain_texture(seed: int, colour: tuple[float, float, float], w: int = 16, h: int = 64,
+                  aux: int = 0, bands: int = 0) -> np.ndarray:
+    """Small painted-metal/concrete texture for poles, bins, hydrants, lamp heads."""
+    rng = np.random.default_rng(seed)
+    g = value_noise((h, w), rng, cell=4, octaves=2)[..., None]
+    rgb = np.float32(colour) * (0.85 + 0.3 * g)
+    for k in range(bands):
+        y = int((k + 1) * h / (bands + 1))
+        rgb[y:y + max(1, h // 32)] *= 0.6
+    return _finish(rgb.astype(np.float32), np.full((h, w), aux, np.uint8), blur=0.5)

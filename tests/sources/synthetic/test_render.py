@@ -1,0 +1,183 @@
+"""Tests of the renderer: exact geometry, lighting and what SIFT sees (Sec. III-C, IV-A)."""
+
+import datetime as dt
+
+import cv2
+import numpy as np
+import pytest
+
+from rp_jax import categories
+from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.render import View, contact_sheet, look_at, project, render
+from rp_jax.sources.synthetic.scene import Material, QuadSet, build_scene
+
+TZ = dt.timezone(dt.timedelta(hours=-5))
+NOON = dt.datetime(2024, 7, 9, 12, 30, tzinfo=TZ)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return build_scene(11, length_m=60.0, vegetation=0.4)
+
+
+def _webcam(scene, w=320, h=240, distortion=None):
+    return look_at((30.0, scene.sidewalk_y[0], 4.0), (36.0, scene.facade_y[1], 6.0), width=w, height=h,
+                   fov_deg=70.0, distortion=distortion)
+
+
+def _clear_day(scene, hour=12, minute=30, month=7, start=1):
+    """First date (from ``start``) whose weather is clear, to make lighting tests sharp."""
+    from rp_jax.sources.synthetic.conditions import weather_of_day
+
+    for d in range(start, 29):
+        if weather_of_day(scene.seed, dt.date(2024, month, d), scene.latitude)[0] == "clear":
+            return dt.datetime(2024, month, d, hour, minute, tzinfo=TZ)
+    raise AssertionError("no clear day")
+
+
+def test_frame_shapes_and_categories(scene):
+    view = look_at((20.0, scene.lanes_y["eastbound"], 1.6), (60.0, scene.lanes_y["eastbound"], 1.6),
+                   width=160, height=120)
+    f = render(scene, view, NOON)
+    assert f.rgb.shape == (120, 160, 3) and f.rgb.dtype == np.uint8
+    assert f.depth.shape == (120, 160) and f.depth.dtype == np.float32
+    assert f.category.shape == (120, 160)
+    assert np.all(f.category[-3:] == categories.GROUND)
+    top = f.category[:5, 60:100]
+    assert np.mean(top == categories.SKY) > 0.5
+    assert np.all(np.isinf(f.depth[f.category == categories.SKY]))
+    assert np.all(np.isfinite(f.depth[f.category != categories.SKY]))
+    for key in ("sun_elevation_deg", "sun_azimuth_deg", "weather", "gain", "snow", "foliage"):
+        assert key in f.meta
+
+
+def test_depth_is_consistent_between_views(scene):
+    when = _clear_day(scene)
+    va = _webcam(scene)
+    vb = look_at((26.0, scene.sidewalk_y[0] + 1.0, 2.5), (38.0, scene.facade_y[1], 5.0), width=320, height=240,
+                 fov_deg=65.0)
+    fa, fb = render(scene, va, when), render(scene, vb, when)
+    v, u = np.mgrid[0:240:7, 0:320:7]
+    z = fa.depth[v, u]
+    ok = np.isfinite(z)
+    u, v, z = u[ok], v[ok], z[ok]
+    Xc = np.stack([(u - va.K[0, 2]) / va.K[0, 0] * z, (v - va.K[1, 2]) / va.K[1, 1] * z, z], -1)
+    X = (Xc - va.t) @ va.R
+    pb = project(vb, X)
+    zb = (X @ vb.R.T + vb.t)[:, 2]
+    ib = np.round(pb).astype(int)
+    inside = (ib[:, 0] >= 0) & (ib[:, 0] < 320) & (ib[:, 1] >= 0) & (ib[:, 1] < 240) & (zb > 0)
+    rendered = fb.depth[ib[inside, 1], ib[inside, 0]]
+    rel = np.abs(rendered - zb[inside]) / zb[inside]
+    # Occluded points differ; visible ones agree. Most sampled points are visible in both.
+    assert inside.sum() > 300
+    assert np.mean(rel < 0.02) > 0.8
+
+
+def _marker_scene(scene, centre):
+    """The scene plus a vertical 0.6 m marker quad facing -y with a dark dot at its centre."""
+    key = "marker"
+    def tex():
+        img = np.full((64, 64, 3), 0.9, np.float32)
+        yy, xx = np.mgrid[0:64, 0:64]
+        img *= 1 - 0.85 * np.exp(-((xx - 31.5) ** 2 + (yy - 31.5) ** 2) / (2 * 4.0**2))[..., None]
+        return tx._finish(img, np.zeros((64, 64), np.uint8), blur=0)
+    scene.textures.register(key, tex, {})
+    o = np.asarray(centre) + np.array([-0.3, 0.0, 0.3])
+    marker = QuadSet(o[None], np.array([[0.6, 0, 0]]), np.array([[0, 0, -0.6]]), [key],
+                     np.array([categories.OTHER], np.uint8), np.array([Material.WALL], np.int8),
+                     np.array([-1], np.int32), np.asarray(centre)[None] - [0, 0.05, 0], np.array([-1], np.int32),
+                     np.zeros(1, np.float32))
+    import dataclasses
+    return dataclasses.replace(scene, static=QuadSet.concat([scene.static, marker]))
+
+
+@pytest.mark.parametrize("distortion", [None, (-0.12, 0.02, 0.001, -0.0005)])
+def test_marker_drawn_where_projected(scene, distortion):
+    centre = np.array([35.0, scene.sidewalk_y[0] + 3.5, 2.0])
+    s = _marker_scene(scene, centre)
+    for eye in [(33.0, scene.sidewalk_y[0], 1.7), (36.4, scene.sidewalk_y[0] - 0.5, 2.3)]:
+        view = look_at(eye, centre + [0.37, 0.0, 0.21], width=320, height=240, fov_deg=60.0, distortion=distortion)
+        f = render(s, view, _clear_day(scene), seed=0)
+        p = project(view, centre[None])[0]
+        x0, y0 = int(p[0]) - 10, int(p[1]) - 10
+        patch = f.rgb[y0:y0 + 21, x0:x0 + 21].astype(np.float64).mean(-1)
+        dark = np.clip(np.percentile(patch, 90) - patch, 0, None)
+        dark[dark < 0.3 * dark.max()] = 0
+        yy, xx = np.mgrid[0:21, 0:21]
+        cx, cy = (dark * xx).sum() / dark.sum() + x0, (dark * yy).sum() / dark.sum() + y0
+        assert np.hypot(cx - p[0], cy - p[1]) < 0.5, (cx, cy, p)
+
+
+def test_day_night_and_weather_lighting(scene):
+    view = _webcam(scene, 160, 120)
+    day = _clear_day(scene)
+    noon = render(scene, view, day)
+    night = render(scene, view, day.replace(hour=23, minute=30))
+    assert noon.meta["sun_elevation_deg"] > 60 and night.meta["sun_elevation_deg"] < -15
+    assert night.meta["gain"] > 5 * noon.meta["gain"]
+    assert night.rgb.mean() < 0.6 * noon.rgb.mean()
+    winter_dusk = render(scene, view, dt.datetime(2024, 12, 15, 17, 30, tzinfo=TZ))
+    summer_dusk = render(scene, view, dt.datetime(2024, 7, 15, 17, 30, tzinfo=TZ))
+    assert winter_dusk.meta["sun_elevation_deg"] < 0 < summer_dusk.meta["sun_elevation_deg"]
+    assert winter_dusk.rgb.mean() < summer_dusk.rgb.mean()
+
+
+def test_shadows_move_with_the_sun(scene):
+    view = look_at((30.0, scene.lanes_y["westbound"], 8.0), (34.0, 0.0, 0.0), width=160, height=120)
+    day = _clear_day(scene)
+    a = render(scene, view, day.replace(hour=9, minute=0)).rgb.astype(float)
+    b = render(scene, view, day.replace(hour=16, minute=0)).rgb.astype(float)
+    assert np.mean(np.abs(a - b)) > 8.0
+
+
+def _sift(img):
+    sift = cv2.SIFT_create()
+    return sift.detect(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), None)
+
+
+def _redetected(kp_a, kp_b, tol=2.5):
+    if not kp_a or not kp_b:
+        return 0.0
+    a = np.array([k.pt for k in kp_a])
+    b = np.array([k.pt for k in kp_b])
+    d = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min(1)
+    return float(np.mean(d < tol))
+
+
+def test_sift_day_night_and_time_of_day_repeatability(scene):
+    view = _webcam(scene, 320, 240)
+    d1 = _clear_day(scene, 12, 0)
+    d2 = _clear_day(scene, 12, 0, start=d1.day + 1)
+    f_noon = render(scene, view, d1)
+    kp_noon = _sift(f_noon.rgb)
+    kp_noon2 = _sift(render(scene, view, d2, seed=1).rgb)
+    kp_eve = _sift(render(scene, view, d1.replace(hour=18, minute=30)).rgb)
+    kp_night = _sift(render(scene, view, d1.replace(hour=23, minute=30)).rgb)
+    assert len(kp_noon) > 200
+    assert len(kp_night) < 0.6 * len(kp_noon)
+    xy = np.array([k.pt for k in kp_noon]).astype(int)
+    assert np.ptp(xy[:, 0]) > 200 and np.ptp(xy[:, 1]) > 120  # spread over the scene
+    same_time = _redetected(kp_noon, kp_noon2)
+    other_time = _redetected(kp_noon, kp_eve)
+    assert same_time > other_time
+    assert same_time > 0.3
+
+
+def test_vegetation_changes_with_season():
+    s = build_scene(4, vegetation=0.9)
+    view = look_at((20.0, s.sidewalk_y[0], 1.7), (24.0, s.sidewalk_y[1], 4.0), width=320, height=240, fov_deg=75.0)
+    july = render(s, view, dt.datetime(2024, 7, 20, 12, 0, tzinfo=TZ))
+    jan = render(s, view, dt.datetime(2024, 1, 20, 12, 0, tzinfo=TZ))
+    assert july.meta["foliage"] == 1.0 and jan.meta["foliage"] == 0.0
+    veg_july = np.mean(july.category == categories.VEGETATION)
+    veg_jan = np.mean(jan.category == categories.VEGETATION)
+    assert veg_jan < 0.5 * veg_july
+
+
+def test_contact_sheet():
+    imgs = [np.full((48, 64, 3), v, np.uint8) for v in (0, 128, 255)]
+    sheet = contact_sheet(imgs, ["a", "b", "c"], columns=2, width=64)
+    assert sheet.ndim == 3 and sheet.shape[1] == 128 and sheet.shape[0] == 2 * (48 + 22)
+    with pytest.raises(ValueError):
+        contact_sheet(imgs, ["a"])
