@@ -1,1 +1,27 @@
-"""rp_jax.groundtruth."""
+"""Ground-truth repeatability labels of interest points (Sec. III-D of the paper).
+
+OpenCV/NumPy only (no jax): detection (``features``), 64x64x3 patches (``patches``),
+vectorised nearest-neighbour + ratio-test matching (``matching``), geometric verification
+(``verification``, ``triangulation``), the repeatability vector y^j and its mask
+(``labels``) and the cached, resumable per-viewpoint pipeline (``viewpoint``).
+"""
+
+from rp_jax.groundtruth.config import GroundTruthConfig
+from rp_jax.groundtruth.labels import repeatability_labels
+from rp_jax.groundtruth.viewpoint import (
+    RECORD_KEYS,
+    TIME_FIELDS,
+    label_viewpoint,
+    label_viewpoints,
+    load_records,
+)
+
+__all__ = [
+    "RECORD_KEYS",
+    "TIME_FIELDS",
+    "GroundTruthConfig",
+    "label_viewpoint",
+    "label_viewpoints",
+    "load_records",
+    "repeatability_labels",
+]
