@@ -1,0 +1,195 @@
+"""Online visual localization against a (summary) map (Sec. V-B, Fig. 10 of the paper).
+
+1. retrieve the K nearest database images of the query by global descriptor (KD-tree);
+2. candidate 3D points = points of the summary map observed by the retrieved images;
+3. 2D-3D matches between the query's keypoints and the candidates' mean descriptors
+   (KD-tree nearest neighbour + ratio test);
+4. 6-DoF pose by PnP-RANSAC with the query's known intrinsics.
+
+:class:`LocalizationMap` bundles what the client receives: the summary map's points, their
+mean descriptors, which database image sees which point, and the global-descriptor index.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from rp_jax.localize.matching import match_2d3d
+from rp_jax.localize.pnp import PoseEstimate, estimate_pose
+from rp_jax.localize.retrieval import GlobalIndex
+from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
+from rp_jax.mapsum.colmap_io import MapPoints
+
+__all__ = [
+    "LocalizationMap",
+    "LocalizationResult",
+    "QueryImage",
+    "build_vlad_index",
+    "localize",
+    "localize_queries",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class QueryImage:
+    """What the client knows about a query image.
+
+    Attributes:
+      name: query name (as in the submission file).
+      xy: [N, 2] keypoints (same pixel convention as ``K``).
+      descriptors: [N, D] local descriptors (same kind as the map's).
+      global_descriptor: [G] global descriptor (same kind as the map index's).
+      K: 3x3 intrinsics.
+      distortion: OpenCV distortion coefficients, or None.
+    """
+
+    name: str
+    xy: np.ndarray
+    descriptors: np.ndarray
+    global_descriptor: np.ndarray
+    K: np.ndarray
+    distortion: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class LocalizationResult:
+    """Pose and diagnostics of one query."""
+
+    pose: PoseEstimate
+    retrieved: list[str]
+    num_candidates: int
+    num_matches: int
+
+    @property
+    def success(self) -> bool:
+        return self.pose.success
+
+
+class LocalizationMap:
+    """The summary map as used online.
+
+    Args:
+      map_points: the full map (or an already-pruned one).
+      point_descriptors: [P, D] mean descriptor of each point of ``map_points``.
+      index: global-descriptor index of the database images (names as in
+        ``map_points.image_names``).
+      keep: optional [P] bool keep-mask of the summary; None keeps every point.
+    """
+
+    def __init__(
+        self,
+        map_points: MapPoints,
+        point_descriptors: np.ndarray,
+        index: GlobalIndex,
+        keep: np.ndarray | None = None,
+    ):
+        point_descriptors = np.asarray(point_descriptors, dtype=np.float32)
+        if len(point_descriptors) != map_points.num_points:
+            raise ValueError(
+                f"{len(point_descriptors)} point descriptors for {map_points.num_points} points"
+            )
+        if keep is not None:
+            keep = np.asarray(keep, dtype=bool)
+            map_points = map_points.subset(keep)
+            point_descriptors = point_descriptors[keep]
+        self.map_points = map_points
+        self.point_descriptors = point_descriptors
+        self.index = index
+        self._points_of_image: dict[str, np.ndarray] = {}
+        order = np.argsort(map_points.obs_image_id, kind="stable")
+        ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
+        bounds = np.append(starts, len(order))
+        id_to_name = dict(map_points.image_names)
+        for k, image_id in enumerate(ids.tolist()):
+            rows = map_points.obs_point[order[bounds[k] : bounds[k + 1]]]
+            self._points_of_image[id_to_name.get(image_id, str(image_id))] = np.unique(rows)
+
+    def points_seen_by(self, image_names: list[str]) -> np.ndarray:
+        """Sorted rows of the points observed by any of the given database images."""
+        parts = [self._points_of_image.get(n, np.zeros(0, np.int64)) for n in image_names]
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+
+
+def localize(
+    query: QueryImage,
+    localization_map: LocalizationMap,
+    num_retrieved: int = 10,
+    ratio: float = 0.8,
+    reprojection_error: float = 8.0,
+    min_inliers: int = 12,
+    ransac_iterations: int = 10_000,
+    seed: int = 0,
+) -> LocalizationResult:
+    """Localizes one query image against the summary map.
+
+    Args:
+      query: the query image's keypoints, descriptors, global descriptor and intrinsics.
+      localization_map: the summary map.
+      num_retrieved: K, the number of database images retrieved.
+      ratio: Lowe's ratio for 2D-3D matching.
+      reprojection_error: RANSAC inlier threshold in pixels.
+      min_inliers: fewer PnP inliers than this is a failure.
+      ransac_iterations: RANSAC iterations.
+      seed: RANSAC seed.
+
+    Returns:
+      The pose (``pose.success`` False on failure) and diagnostics.
+    """
+    retrieved, _ = localization_map.index.query(query.global_descriptor, num_retrieved)
+    candidates = localization_map.points_seen_by(retrieved)
+    q_idx, c_idx = match_2d3d(
+        query.descriptors, localization_map.point_descriptors[candidates], ratio=ratio
+    )
+    rows = candidates[c_idx]
+    pose = estimate_pose(
+        np.asarray(query.xy)[q_idx],
+        localization_map.map_points.xyz[rows],
+        query.K,
+        query.distortion,
+        reprojection_error=reprojection_error,
+        iterations=ransac_iterations,
+        min_inliers=min_inliers,
+        seed=seed,
+    )
+    return LocalizationResult(pose, retrieved, len(candidates), len(q_idx))
+
+
+def localize_queries(
+    queries: list[QueryImage], localization_map: LocalizationMap, **kwargs
+) -> dict[str, LocalizationResult]:
+    """:func:`localize` for every query (tqdm progress); kwargs as for :func:`localize`."""
+    return {
+        q.name: localize(q, localization_map, **kwargs)
+        for q in tqdm(queries, desc="localize", leave=False, disable=len(queries) < 20)
+    }
+
+
+def build_vlad_index(
+    database_descriptors: Mapping[str, np.ndarray],
+    num_words: int = 64,
+    seed: int = 0,
+    max_samples: int = 200_000,
+) -> tuple[GlobalIndex, np.ndarray]:
+    """VLAD-over-RootSIFT index of the database images (the NetVLAD stand-in).
+
+    Args:
+      database_descriptors: image name -> [n, 128] SIFT descriptors of that image.
+      num_words: vocabulary size.
+      seed: k-means seed.
+      max_samples: descriptors sampled to learn the vocabulary.
+
+    Returns:
+      (index, vocabulary); compute a query's descriptor with
+      ``vlad(rootsift(descriptors), vocabulary)``.
+    """
+    names = sorted(database_descriptors)
+    root = {n: rootsift(database_descriptors[n]) for n in names}
+    vocabulary = learn_vocabulary(
+        np.concatenate([root[n] for n in names]), num_words, seed, max_samples
+    )
+    vectors = np.stack([vlad(root[n], vocabulary) for n in names])
+    return GlobalIndex(names, vectors), vocabulary

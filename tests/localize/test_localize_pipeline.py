@@ -1,0 +1,122 @@
+"""End-to-end test of rp_jax.localize.localize on a tiny synthetic map (Sec. V-B)."""
+
+import numpy as np
+
+from rp_jax.localize import (
+    LocalizationMap,
+    QueryImage,
+    build_vlad_index,
+    localization_recall,
+    localize,
+    localize_queries,
+    pose_error,
+    project,
+    rootsift,
+    vlad,
+)
+from rp_jax.mapsum import MapPoints, point_descriptors, prune_by_score
+
+K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+SIZE = np.array([640, 480])
+
+
+def _rot_y(deg):
+    a = np.radians(deg)
+    return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+
+
+def _visible(xyz, R, t):
+    xy, z = project(xyz, R, t, K)
+    inside = (z > 0.1) & np.all((xy >= 0) & (xy < SIZE), axis=1)
+    return np.flatnonzero(inside), xy
+
+
+def _synthetic_map(rng, n_points=1500, n_images=8):
+    xyz = np.column_stack(
+        [
+            rng.uniform(-25, 25, n_points),
+            rng.uniform(-5, 5, n_points),
+            rng.uniform(12, 30, n_points),
+        ]
+    )
+    desc = rng.gamma(0.5, 20, (n_points, 128))  # SIFT-like: sparse, non-negative
+    obs_point, obs_image, obs_xy, obs_desc, db_desc = [], [], [], [], {}
+    for i in range(n_images):
+        C = np.array([-18 + 36 * i / (n_images - 1), 0.0, 0.0])
+        R = _rot_y(rng.uniform(-5, 5))
+        t = -R @ C
+        vis, xy = _visible(xyz, R, t)
+        d = desc[vis] + rng.normal(scale=2.0, size=(len(vis), 128))
+        obs_point.append(vis)
+        obs_image.append(np.full(len(vis), i + 1))
+        obs_xy.append(xy[vis])
+        obs_desc.append(d)
+        db_desc[f"db_{i}.jpg"] = np.maximum(d, 0)
+    mp = MapPoints(
+        xyz=xyz,
+        point3D_ids=np.arange(n_points),
+        obs_point=np.concatenate(obs_point),
+        obs_image_id=np.concatenate(obs_image),
+        obs_point2D_idx=np.concatenate([np.arange(len(v)) for v in obs_point]),
+        obs_xy=np.concatenate(obs_xy),
+        image_names={i + 1: f"db_{i}.jpg" for i in range(n_images)},
+    )
+    order = np.argsort(np.concatenate(obs_point), kind="stable")
+    return mp, desc, np.concatenate(obs_desc)[order], db_desc
+
+
+def _query(rng, name, xyz, desc, words, C, yaw):
+    R = _rot_y(yaw)
+    t = -R @ np.asarray(C, float)
+    vis, xy = _visible(xyz, R, t)
+    kp = xy[vis] + rng.normal(scale=0.5, size=(len(vis), 2))
+    d = desc[vis] + rng.normal(scale=2.0, size=(len(vis), 128))
+    n_clutter = int(0.3 * len(vis))  # 30 % distractor keypoints
+    kp = np.concatenate([kp, rng.uniform([0, 0], SIZE, (n_clutter, 2))])
+    d = np.maximum(np.concatenate([d, rng.gamma(0.5, 20, (n_clutter, 128))]), 0)
+    query = QueryImage(name, kp, d, vlad(rootsift(d), words), K)
+    return query, (R, t)
+
+
+def test_localize_tiny_synthetic_map_within_thresholds():
+    rng = np.random.default_rng(0)
+    mp, desc, obs_desc, db_desc = _synthetic_map(rng)
+    index, words = build_vlad_index(db_desc, num_words=16, seed=0)
+    lmap = LocalizationMap(mp, point_descriptors(mp, obs_desc), index)
+    query, (R, t) = _query(rng, "q.jpg", mp.xyz, desc, words, C=[3.0, 0.5, 1.0], yaw=4.0)
+    result = localize(query, lmap, num_retrieved=3)
+    assert result.success, result
+    assert result.num_candidates < mp.num_points  # retrieval restricted the candidates
+    dt, dr = pose_error(R, t, result.pose.R, result.pose.t)
+    assert dt < 0.25 and dr < 2.0, (dt, dr)
+    # The retrieved images are the ones nearest the query (camera x = 3 -> db_4 / db_5).
+    assert set(result.retrieved[:2]) <= {"db_3.jpg", "db_4.jpg", "db_5.jpg"}
+
+
+def test_localize_on_summary_map_and_recall():
+    rng = np.random.default_rng(1)
+    mp, desc, obs_desc, db_desc = _synthetic_map(rng)
+    index, words = build_vlad_index(db_desc, num_words=16, seed=0)
+    keep = prune_by_score(rng.random(mp.num_points), None, 0.5)
+    lmap = LocalizationMap(mp, point_descriptors(mp, obs_desc), index, keep=keep)
+    assert lmap.map_points.num_points == keep.sum()
+    queries, gt = [], {}
+    for k, x in enumerate([-12.0, 0.0, 9.0]):
+        q, pose = _query(rng, f"q{k}.jpg", mp.xyz, desc, words, C=[x, 0.0, 2.0], yaw=-3.0)
+        queries.append(q)
+        gt[q.name] = pose
+    results = localize_queries(queries, lmap, num_retrieved=3)
+    errors = {
+        n: pose_error(*gt[n], r.pose.R, r.pose.t) if r.success else (np.inf, np.inf)
+        for n, r in results.items()
+    }
+    assert localization_recall(errors, [(0.25, 2.0)]) == [100.0], errors
+    # A query whose view the map cannot match (pure clutter) fails cleanly.
+    clutter = QueryImage(
+        "noise.jpg",
+        rng.uniform([0, 0], SIZE, (200, 2)),
+        rng.gamma(0.5, 20, (200, 128)),
+        rng.normal(size=16 * 128),
+        K,
+    )
+    assert not localize(clutter, lmap, num_retrieved=3).success
