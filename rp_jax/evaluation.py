@@ -41,22 +41,30 @@ def masked_errors(pred: np.ndarray, label: np.ndarray, mask: np.ndarray) -> dict
 
 
 def average_curve(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Mean over points at each timestamp, over valid entries only ([N, T] -> [T])."""
+    """Mean over points at each timestamp, over valid entries only ([N, T] -> [T]).
+
+    A timestamp with no valid entry (no images in that slot) is NaN: a gap, not a zero.
+    """
     m = mask.astype(np.float64)
-    return (values * m).sum(0) / np.maximum(m.sum(0), 1.0)
+    count = m.sum(0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, (values * m).sum(0) / np.maximum(count, 1.0), np.nan)
 
 
 def curve_corr(pred: np.ndarray, label: np.ndarray, mask: np.ndarray) -> float:
     """Pearson correlation between the average ground-truth and average predicted curves."""
     a, b = average_curve(label, mask), average_curve(pred, mask)
-    if a.std() == 0 or b.std() == 0:
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b = a[ok], b[ok]
+    if len(a) < 2 or a.std() == 0 or b.std() == 0:
         return float("nan")
     return float(np.corrcoef(a, b)[0, 1])
 
 
 def per_slot_mean(train_label: np.ndarray, train_mask: np.ndarray, n: int) -> np.ndarray:
     """Predict the training set's average curve for every one of ``n`` points."""
-    return np.broadcast_to(average_curve(train_label, train_mask), (n, train_label.shape[1])).copy()
+    curve = np.nan_to_num(average_curve(train_label, train_mask), nan=0.0)
+    return np.broadcast_to(curve, (n, train_label.shape[1])).copy()
 
 
 def slot_conditioned_mean(
@@ -67,11 +75,12 @@ def slot_conditioned_mean(
     A capture slot never seen in training falls back to the per-slot mean.
     """
     T = train_label.shape[1]
-    fallback = average_curve(train_label, train_mask)
+    fallback = np.nan_to_num(average_curve(train_label, train_mask), nan=0.0)
     table = np.tile(fallback, (T, 1))
     for s in np.unique(train_slot):
         sel = train_slot == s
-        table[s] = np.where(train_mask[sel].any(0), average_curve(train_label[sel], train_mask[sel]), fallback)
+        table[s] = np.where(train_mask[sel].any(0), np.nan_to_num(average_curve(train_label[sel], train_mask[sel])),
+                            fallback)
     return table[np.asarray(test_slot)]
 
 

@@ -19,6 +19,8 @@ def test_average_curve_and_corr():
     label = np.array([[0.0, 1.0, 0.0], [0.2, 0.8, 9.0]])
     mask = np.array([[True, True, True], [True, True, False]])
     np.testing.assert_allclose(ev.average_curve(label, mask), [0.1, 0.9, 0.0])
+    gap = ev.average_curve(label, np.array([[True, False, True], [True, False, False]]))
+    assert np.isnan(gap[1]) and gap[0] == 0.1
     assert ev.curve_corr(label * 0.5 + 0.1, label, mask) == pytest.approx(1.0)
     assert np.isnan(ev.curve_corr(np.ones_like(label), label, mask))
 
