@@ -33,6 +33,12 @@ def _vignette(width: int, height: int, fx: float, cx: float, cy: float) -> np.nd
     return (1.0 - 0.55 * (1.0 - cos4)).astype(np.float32)
 
 
+@functools.lru_cache(maxsize=16)
+def _vignette3(width: int, height: int, fx: float, cx: float, cy: float) -> np.ndarray:
+    """The vignetting map repeated over the three colour channels (H, W, 3), contiguous."""
+    return np.ascontiguousarray(np.repeat(_vignette(width, height, fx, cx, cy)[..., None], 3, axis=-1))
+
+
 @functools.lru_cache(maxsize=1)
 def _srgb_lut() -> np.ndarray:
     x = np.linspace(0.0, 1.0, 4096)
@@ -47,22 +53,35 @@ def _noise_bank() -> np.ndarray:
     return np.random.default_rng(1234).standard_normal(1 << 22, dtype=np.float32)
 
 
-def _gaussian_noise(shape: tuple, rng: np.random.Generator) -> np.ndarray:
-    """Unit Gaussian noise: a random window of a cached bank, shuffled in blocks (cheap)."""
+def _gaussian_noise(shape: tuple, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+    """Unit Gaussian noise: a random window of a cached bank and a random sign (cheap, contiguous)."""
     n = int(np.prod(shape))
     bank = _noise_bank()
     if n > bank.size // 2:
-        return rng.standard_normal(shape, dtype=np.float32)
+        return rng.standard_normal(shape, dtype=np.float32), 1.0
     start = int(rng.integers(0, bank.size - n))
-    out = bank[start:start + n].reshape(shape)
-    return out[:, ::-1] if rng.random() < 0.5 else out
+    return bank[start:start + n].reshape(shape), (-1.0 if rng.random() < 0.5 else 1.0)
+
+
+@functools.lru_cache(maxsize=1)
+def _srgb_lut_image() -> np.ndarray:
+    """The tone curve as a 1 x 4096 uint8 image, for ``cv2.remap`` lookups."""
+    return _srgb_lut().reshape(1, -1)
+
+
+@functools.lru_cache(maxsize=8)
+def _zero_map(height: int, width: int) -> np.ndarray:
+    return np.zeros((height, width), np.float32)
 
 
 def expose(radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
     """Turns linear scene radiance into a webcam's 8-bit RGB image.
 
+    Vignetting and gain are one multiply by a cached map; the noise and the quantisation
+    run in place on the frame (no full-frame temporaries but the noise and its sigma).
+
     Args:
-      radiance: (H, W, 3) float32 linear radiance.
+      radiance: (H, W, 3) float32 linear radiance (modified in place).
       K: 3x3 intrinsics (vignetting is radial around the principal point).
       rng: generator of this frame's sensor noise.
 
@@ -70,15 +89,23 @@ def expose(radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator) -> tup
       (rgb uint8 (H, W, 3), meta with ``gain``, ``exposure_mean``, ``noise_sigma``).
     """
     h, w = radiance.shape[:2]
-    img = radiance  # (the lens point-spread function is applied to the albedo by the renderer)
-    img *= _vignette(w, h, float(K[0, 0]), float(K[0, 2]), float(K[1, 2]))[..., None]
-    lum = img[::4, ::4] @ np.float32([0.2126, 0.7152, 0.0722])
+    img = np.ascontiguousarray(radiance, np.float32)  # (the lens PSF is applied to the albedo by the renderer)
+    vig = _vignette3(w, h, float(K[0, 0]), float(K[0, 2]), float(K[1, 2]))
+    lum = (img[::4, ::4] * vig[::4, ::4]) @ np.float32([0.2126, 0.7152, 0.0722])
     mean = float(np.mean(np.minimum(lum, 2.0)))
     gain = float(np.clip(TARGET_MEAN / max(mean, 1e-6), MIN_GAIN, MAX_GAIN))
-    img *= gain
-    rel = gain / _DAY_GAIN
-    sigma = np.sqrt(np.maximum(img, 0.0) * (_SHOT * max(rel, 1.0)) + (_READ * max(rel, 1.0)) ** 2)
-    img += sigma * _gaussian_noise(img.shape, rng)
-    idx = np.clip(img * 4095.0, 0, 4095).astype(np.uint16)
-    rgb = _srgb_lut()[idx]
-    return rgb, {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * max(rel, 1.0))}
+    cv2.multiply(img, vig, dst=img, scale=gain)
+    rel = max(gain / _DAY_GAIN, 1.0)
+    # sigma = sqrt(max(img, 0) * shot + read^2), then img += sigma * N(0, 1).
+    sigma = cv2.max(img, 0.0)
+    cv2.addWeighted(sigma, _SHOT * rel, sigma, 0.0, (_READ * rel) ** 2, dst=sigma)
+    cv2.sqrt(sigma, dst=sigma)
+    noise, sign = _gaussian_noise(img.shape, rng)
+    cv2.multiply(sigma, noise, dst=sigma, scale=sign)
+    cv2.add(img, sigma, dst=img)
+    # Tone curve: a lookup of the 12-bit code in a 1 x 4096 image (remap clamps to its ends).
+    codes = img.reshape(h, w * 3)
+    codes *= 4095.0
+    rgb = cv2.remap(_srgb_lut_image(), codes, _zero_map(h, w * 3), cv2.INTER_NEAREST,
+                    borderMode=cv2.BORDER_REPLICATE).reshape(h, w, 3)
+    return rgb, {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * rel)}

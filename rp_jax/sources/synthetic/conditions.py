@@ -8,7 +8,9 @@ module turns a capture instant and a place into those factors, deterministically
 * the weather drawn per capture *day* from (scene seed, local date): clear, partly cloudy
   (moving cloud shadows), overcast, rain (wet, darker surfaces), snow;
 * the season from the local date and latitude: leaf density and autumn colour, grass
-  colour, and a snow pack simulated day by day over the winter (so snow persists);
+  colour, and a snow pack simulated day by day over the winter from a regional series of
+  daily temperature and precipitation (so snow accumulates, persists and melts; about half
+  of the late-December to February days in Pittsburgh have snow on the ground);
 * the light: direct sun irradiance and colour (air mass, Kasten-Young) and ambient sky
   irradiance, including civil/nautical twilight and night (street lamps, lit windows).
 
@@ -19,12 +21,14 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 
 import numpy as np
 
 from rp_jax.sources.synthetic import sun as sunlib
 
-__all__ = ["Conditions", "conditions_at", "weather_of_day", "season_of_day", "snow_level", "WEATHERS"]
+__all__ = ["Conditions", "conditions_at", "weather_of_day", "season_of_day", "snow_level", "snow_state",
+           "air_temperature", "WEATHERS", "CLIMATE_SEED", "SNOW_LEVELS_CM"]
 
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
 
@@ -40,6 +44,7 @@ class Conditions:
     cloud_cover: float  # 0..1
     wet: bool
     snow: int  # 0..4 snow cover level
+    snow_pattern: int  # id of the snow pack's pattern (last snowfall's ordinal), 0 without snow
     foliage: float  # 0..1 leaf density
     autumn: float  # 0..1 autumn colour
     grass: int  # 0 winter, 1 spring/summer, 2 late summer, 3 autumn
@@ -114,38 +119,125 @@ def weather_of_day(seed: int, date: dt.date, latitude: float) -> tuple[str, floa
     return kind, float(cover), wind
 
 
-def snow_level(seed: int, date: dt.date, latitude: float) -> tuple[int, bool]:
-    """Snow cover level 0..4 on a date, and whether it snows that day.
+# ---------------------------------------------------------------- winter: a daily snow pack
 
-    A snow pack is simulated day by day from 1 November: snowfall days are drawn from
-    (seed, date) with a probability rising with latitude and towards mid winter, and the
-    pack melts faster towards spring. Latitudes below about 32 deg never get snow.
+# Seed of the regional weather series. Weather is regional: every street of a city (every
+# slice of a CMU traversal, recorded the same day) shares a day's temperature and snowfall.
+# This constant was chosen so that the series puts snow on the ground in Pittsburgh on
+# 21 Dec 2010, as in the real Extended CMU Seasons traversal (of seeds 0..11, 4, 5, 8 and 11
+# do; 8 gives about 13 cm there). Over 1990-2030 the model covers about half of the late
+# December to February days in Pittsburgh and 35 % of the 21 Decembers.
+CLIMATE_SEED = 8
+SNOW_LEVELS_CM = (2.0, 5.0, 10.0, 20.0)  # snow depth at which cover levels 1..4 start
+_SEASON_DAYS = 275  # a winter season runs from 1 October (1 April south) for this many days
+
+
+def _season_start(date: dt.date, latitude: float) -> dt.date:
+    """First day (1 Oct north, 1 Apr south) of the winter season a date belongs to."""
+    month = 10 if latitude >= 0 else 4
+    start = dt.date(date.year, month, 1)
+    return start if date >= start else dt.date(date.year - 1, month, 1)
+
+
+def _climate_temperature(doy: np.ndarray, latitude: float) -> np.ndarray:
+    """Mean daily air temperature (deg C) by day of year (hemisphere-shifted) and latitude.
+
+    A sinusoid coldest around 20 January; at 40.4 N (Pittsburgh) about -2 C in January and
+    23 C in July, colder and more seasonal towards the poles.
     """
     lat = abs(latitude)
-    cold = np.clip((lat - 32.0) / 20.0, 0.0, 1.0)
-    if cold <= 0:
-        return 0, False
-    start_year = date.year if _day_of_year(date, latitude) >= 300 else date.year - 1
-    start = dt.date(start_year, 11, 1)
-    if latitude < 0:
-        start = dt.date(start_year if date.month >= 5 else start_year, 5, 1)
-        if date < start:
-            start = dt.date(date.year - 1, 5, 1)
-    if (date - start).days > 170 or date < start:
-        return 0, False
-    depth, fell = 0.0, False
-    day = start
-    while day <= date:
-        d = _day_of_year(day, latitude)
-        winter = 0.5 + 0.5 * np.cos(2 * np.pi * (d - 20) / 365.0)
-        rng = np.random.default_rng([seed & 0xFFFFFFFF, 12, day.toordinal()])
-        fell = rng.random() < cold * 0.22 * winter**2
-        if fell:
-            depth += rng.uniform(2.0, 15.0) * cold
-        depth = max(0.0, depth - (1.0 + 6.0 * (1 - winter) ** 2) * (1.5 - cold))
-        day += dt.timedelta(days=1)
-    level = int(np.digitize(depth, [0.5, 4.0, 10.0, 20.0]))
-    return level, bool(fell)
+    mean = 11.0 - 0.75 * (lat - 40.0)
+    amp = max(2.0, 12.5 + 0.25 * (lat - 40.0))
+    return mean - amp * np.cos(2 * np.pi * (doy - 20) / 365.0)
+
+
+@functools.lru_cache(maxsize=256)
+def _regional_winter(latitude: float, longitude: float, start_ordinal: int) -> tuple[np.ndarray, np.ndarray]:
+    """Daily (temperature deg C, precipitation mm of water) of one winter season in a region.
+
+    The region is the 1-degree cell of (latitude, longitude); the temperature anomaly is an
+    AR(1) process (weather spells last days), precipitation falls on about 40 % of days
+    with exponential amounts (mean 4 mm).
+    """
+    cell = (int(np.floor(latitude)) & 0xFFFF, int(np.floor(longitude)) & 0xFFFF)
+    rng = np.random.default_rng([CLIMATE_SEED, 13, *cell, start_ordinal])
+    start = dt.date.fromordinal(start_ordinal)
+    doy = np.array([_day_of_year(start + dt.timedelta(days=k), latitude) for k in range(_SEASON_DAYS)])
+    eps = rng.standard_normal(_SEASON_DAYS)
+    anomaly = np.zeros(_SEASON_DAYS)
+    a = 0.0
+    for k in range(_SEASON_DAYS):
+        a = 0.7 * a + 0.714 * 4.5 * eps[k]  # stationary sigma 4.5 C
+        anomaly[k] = a
+    temp = _climate_temperature(doy, latitude) + anomaly
+    wet = rng.random(_SEASON_DAYS) < 0.4
+    precip = np.where(wet, rng.exponential(4.0, _SEASON_DAYS), 0.0)
+    return temp, precip
+
+
+@functools.lru_cache(maxsize=1024)
+def _snow_pack(seed: int, latitude: float, longitude: float, start_ordinal: int) -> tuple[np.ndarray, np.ndarray,
+                                                                                              np.ndarray]:
+    """Daily snow depth (cm), snowfall flag and last-snowfall ordinal of a scene's winter.
+
+    Snow falls on wet days below 0.5 C (1 cm of snow per mm of water); the pack melts by
+    1 cm per degree-day above 0 C, faster in rain and under the rising spring sun, and
+    settles 3 % a day. The scene seed only sets how exposed the street is (its melt rate,
+    0.85-1.2 x), so streets of one city share storms but not exactly their melt.
+    """
+    temp, precip = _regional_winter(latitude, longitude, start_ordinal)
+    exposure = np.random.default_rng([seed & 0xFFFFFFFF, 12]).uniform(0.85, 1.2)
+    start = dt.date.fromordinal(start_ordinal)
+    depth = np.zeros(_SEASON_DAYS)
+    fell = np.zeros(_SEASON_DAYS, bool)
+    last = np.zeros(_SEASON_DAYS, np.int64)
+    d, last_fall = 0.0, 0
+    for k in range(_SEASON_DAYS):
+        doy = _day_of_year(start + dt.timedelta(days=k), latitude)
+        sun = max(0.0, np.cos(2 * np.pi * (doy - 172) / 365.0))  # 1 at the summer solstice
+        snowing = precip[k] > 0.3 and temp[k] < 0.5
+        if snowing:
+            d += precip[k]
+            last_fall = start_ordinal + k
+        melt = max(temp[k] + 1.5, 0.0) * (1.5 + 0.1 * precip[k] * (not snowing)) + 1.5 * sun * (d > 0)
+        d = max(0.0, 0.95 * d - exposure * melt)
+        depth[k], fell[k], last[k] = d, snowing and d >= SNOW_LEVELS_CM[0], last_fall if d > 0 else 0
+    return depth, fell, last
+
+
+def snow_state(seed: int, date: dt.date, latitude: float, longitude: float = 0.0) -> tuple[int, bool, int, float]:
+    """Snow on the ground on a date: (level 0..4, snowing that day, pattern id, depth cm).
+
+    Deterministic per (scene seed, place, date). The snow pack is simulated day by day over
+    the winter (``_snow_pack``), so it accumulates and persists between storms. The
+    pattern id is the ordinal of the last snowfall (0 without snow): drifts and melt
+    patches change with each new snowfall, not between the days of one melting pack.
+    """
+    if abs(latitude) < 28.0:
+        return 0, False, 0, 0.0
+    start = _season_start(date, latitude)
+    k = (date - start).days
+    if k >= _SEASON_DAYS:
+        return 0, False, 0, 0.0
+    depth, fell, last = _snow_pack(int(seed), round(float(latitude), 3), round(float(longitude), 3),
+                                   start.toordinal())
+    level = int(np.digitize(depth[k], SNOW_LEVELS_CM))
+    return level, bool(fell[k]), int(last[k]) if level else 0, float(depth[k])
+
+
+def air_temperature(date: dt.date, latitude: float, longitude: float = 0.0) -> float:
+    """Daily mean air temperature (deg C) of the regional weather series on a date."""
+    start = _season_start(date, latitude)
+    k = (date - start).days
+    if k < _SEASON_DAYS:
+        return float(_regional_winter(round(float(latitude), 3), round(float(longitude), 3), start.toordinal())[0][k])
+    return float(_climate_temperature(np.array([_day_of_year(date, latitude)]), latitude)[0])
+
+
+def snow_level(seed: int, date: dt.date, latitude: float, longitude: float = 0.0) -> tuple[int, bool]:
+    """Snow cover level 0..4 on a date, and whether it snows that day (see ``snow_state``)."""
+    level, snowing, _, _ = snow_state(seed, date, latitude, longitude)
+    return level, snowing
 
 
 def _air_mass(el_deg: float) -> float:
@@ -170,9 +262,11 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
     az = float(az)
     date = when.date()
     kind, cover, wind = weather_of_day(seed, date, latitude)
-    snow, snowing = snow_level(seed, date, latitude)
+    snow, snowing, snow_pattern, _ = snow_state(seed, date, latitude, longitude)
     if snowing:
         kind, cover = "snow", 1.0
+    elif kind == "rain" and abs(latitude) >= 28.0 and air_temperature(date, latitude, longitude) < 0.0:
+        kind = "overcast"  # no rain on a freezing day
     density, autumn, grass = season_of_day(date, latitude)
     hour = when.hour + when.minute / 60.0 + when.second / 3600.0
     # Direct sun: Beer-Lambert through the air mass, reddening at low sun.
@@ -213,8 +307,8 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         zenith, horizon = np.array([0.62, 0.64, 0.68]) * g, np.array([0.78, 0.80, 0.83]) * g
         if kind == "rain":
             zenith, horizon = zenith * 0.7, horizon * 0.75
-    zenith = zenith * twilight + np.array([0.004, 0.005, 0.01])
-    horizon = horizon * twilight + np.array([0.02, 0.014, 0.008])  # city glow at night
+    zenith = zenith * twilight + np.array([0.0004, 0.0005, 0.001])
+    horizon = horizon * twilight + np.array([0.003, 0.002, 0.0012])  # city glow at night (~1/300 of day)
     lamps_on = el < 1.0 or (kind in ("rain", "snow") and el < 6.0)
     if 17 <= hour < 23:
         lit = 0.55
@@ -226,7 +320,7 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         lit = 0.1
     return Conditions(
         sun_elevation_deg=el, sun_azimuth_deg=az, sun_dir=sunlib.sun_direction(el, az),
-        weather=kind, cloud_cover=cover, wet=kind == "rain", snow=snow, foliage=round(density * 20) / 20,
+        weather=kind, cloud_cover=cover, wet=kind == "rain", snow=snow, snow_pattern=snow_pattern, foliage=round(density * 20) / 20,
         autumn=round(autumn * 10) / 10, grass=grass, sun_rgb=direct.astype(np.float32),
         sky_rgb=sky_rgb.astype(np.float32), zenith_rgb=zenith.astype(np.float32),
         horizon_rgb=horizon.astype(np.float32), lamps_on=bool(lamps_on), window_lit_prob=lit,

@@ -228,25 +228,9 @@ def _scene(spec: SceneSpec):
     """The scene of ``spec``, built once per process while its jobs last."""
     scene = _SCENE_CACHE.get(spec)
     if scene is None:
-        for old in _SCENE_CACHE.values():
-            _forget_scene(old)
         _SCENE_CACHE.clear()
         scene = _SCENE_CACHE[spec] = spec.build()
     return scene
-
-
-def _forget_scene(scene) -> None:
-    # scene.py caches car templates by id(scene.textures); once the scene is freed a new
-    # scene's cache may reuse that id and find templates whose textures it never
-    # registered. Drop them with the scene (harmless if scene.py changes).
-    import sys
-
-    module = sys.modules.get("rp_jax.sources.synthetic.scene")
-    templates = getattr(module, "_TEMPLATES", None)
-    textures = getattr(scene, "textures", None)
-    if isinstance(templates, dict) and textures is not None:
-        for key in [k for k in templates if isinstance(k, tuple) and k and k[0] == id(textures)]:
-            del templates[key]
 
 
 def _render(job: FrameJob):

@@ -67,6 +67,7 @@ class TextureState:
 
     season: int = 1  # grass colour: 0 winter, 1 spring/summer, 2 late summer, 3 autumn
     snow: int = 0  # 0..4
+    snow_pattern: int = 0  # the snow pack's pattern id (``conditions.snow_state``), 0 without snow
     foliage: float = 1.0  # quantised leaf density
     autumn: float = 0.0  # quantised autumn colour
 
@@ -182,6 +183,9 @@ class TextureCache:
         self._cache: OrderedDict = OrderedDict()
         self._bytes = 0
         self.max_bytes = max_bytes
+        # Car templates built from this cache's textures, keyed (variant, direction, moving);
+        # they live and die with the cache (a global keyed by id() outlived it).
+        self.car_templates: dict = {}
 
     def register(self, key: str, fn: Callable, kwargs: dict, depends: tuple = ()) -> None:
         """Declares texture ``key`` = ``fn(**kwargs, **state parts named in depends)``."""
@@ -362,12 +366,12 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
             if name == "road":
                 tc.register(key, tx.ground_texture, dict(seed=int(seed * 7919 + i), kind="road", length_m=GROUND_TILE_M,
                                                          width_m=yb - ya, lanes=lanes + 2, crosswalk=i == crosswalk_tile,
-                                                         texel=texel), depends=("season", "snow"))
+                                                         texel=texel), depends=("season", "snow", "snow_pattern"))
             else:
                 gkind = "sidewalk" if name.startswith("sidewalk") else ("grass" if veg >= 0.3 else "sidewalk")
                 tc.register(key, tx.ground_texture, dict(seed=int(seed * 7919 + i * 13 + len(name)), kind=gkind,
                                                          length_m=GROUND_TILE_M, width_m=yb - ya, texel=texel),
-                            depends=("season", "snow"))
+                            depends=("season", "snow", "snow_pattern"))
             if name == "sidewalk_s":  # curb (texture top rows) must face the road (north)
                 qb.add((x0, yb, 0), (GROUND_TILE_M, 0, 0), (0, -(yb - ya), 0), key, categories.GROUND, Material.GROUND, 0)
             elif name == "sidewalk_n":  # flip so that the curb rows lie at the road side (south)
@@ -416,7 +420,8 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
             tc.register(fkey, tx.facade_texture, dict(seed=bseed, width_m=w, height_m=h, floor_h=floor_h, style=style,
                                                       shopfront=urban and rng.random() < 0.7))
             tc.register(skey, tx.side_wall_texture, dict(seed=bseed + 1, width_m=depth, height_m=h, style=style))
-            tc.register(rkey, tx.roof_texture, dict(seed=bseed + 2, width_m=w, depth_m=depth), depends=("snow",))
+            tc.register(rkey, tx.roof_texture, dict(seed=bseed + 2, width_m=w, depth_m=depth),
+                        depends=("snow", "snow_pattern"))
             tex = {front: fkey, "+x": skey, "-x": skey, "+z": rkey}
             faces = (front, "+x", "-x", "+z")
             box_quads(qb, lo, hi, tex, categories.BUILDING, Material.WALL,
@@ -586,18 +591,15 @@ def add_car(qb: _QuadBuilder, tc: TextureCache, x: float, y: float, direction: f
     return [(lo, hi), (clo, chi)]
 
 
-_TEMPLATES: dict = {}
-
-
 def _car_instance(tc: TextureCache, x: float, y: float, direction: float, variant: int, owner: int,
                   moving: bool) -> tuple[QuadSet, np.ndarray]:
     """A car's quads and boxes from a cached template at the origin, moved to (x, y)."""
-    key = (id(tc), variant, direction > 0, moving)
-    if key not in _TEMPLATES:
+    key = (variant, direction > 0, moving)
+    if key not in tc.car_templates:
         qb = _QuadBuilder()
         boxes = add_car(qb, tc, 0.0, 0.0, direction, variant, 0, moving)
-        _TEMPLATES[key] = (qb.build(), np.array(boxes, np.float64))
-    tpl, boxes = _TEMPLATES[key]
+        tc.car_templates[key] = (qb.build(), np.array(boxes, np.float64))
+    tpl, boxes = tc.car_templates[key]
     off = np.array([x, y, 0.0])
     q = dataclasses.replace(tpl, origin=tpl.origin + off, shadow_pt=tpl.shadow_pt + off,
                             owner=np.full(tpl.n, owner, np.int32))

@@ -348,23 +348,30 @@ def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, te
     return _finish(rgb, aux, blur=0.7)
 
 
-def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel: float = 0.08) -> np.ndarray:
+def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel: float = 0.08,
+                 snow_pattern: int = 0) -> np.ndarray:
     """Flat roof (tar/gravel); aux = snow susceptibility (high everywhere)."""
     rng = np.random.default_rng(seed)
     W, H = pad16(width_m / texel), pad16(depth_m / texel)
     g = value_noise((H, W), rng, cell=8, octaves=3)[..., None]
     rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
     aux = (200 + 55 * value_noise((H, W), rng, cell=10, octaves=2)).astype(np.uint8)
-    rgb = _apply_snow(rgb, aux, snow, rng)
+    rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
     return _finish(rgb, aux, blur=0.6)
 
 
-def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, rng: np.random.Generator) -> np.ndarray:
-    """Covers texels whose susceptibility (aux) beats the snow level (0..4) with snow."""
+def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, seed: int, pattern: int) -> np.ndarray:
+    """Covers texels whose susceptibility (aux) beats the snow level (0..4) with snow.
+
+    The drift/melt pattern comes from ``(seed, pattern)``: one snow pack (``pattern``, the
+    last snowfall) melts back through nested patterns as its level drops, and every new
+    snowfall lays a different one.
+    """
     if snow <= 0:
         return rgb
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 77, int(pattern) & 0xFFFFFFFF])
     h, w = aux.shape
-    thr = {1: 225, 2: 190, 3: 120, 4: 40}[int(min(snow, 4))]
+    thr = {1: 215, 2: 170, 3: 110, 4: 45}[int(min(snow, 4))]
     patch = value_noise((h, w), rng, cell=24, octaves=3)
     cover = np.clip((aux.astype(np.float32) + 90 * (patch - 0.5) - thr) / 25.0, 0.0, 1.0)[..., None]
     snow_col = np.float32([0.93, 0.94, 0.97]) * (0.92 + 0.08 * value_noise((h, w), rng, cell=5, octaves=2))[..., None]
@@ -372,7 +379,8 @@ def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, rng: np.random.Gene
 
 
 def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lanes: int = 2,
-                   season: int = 1, snow: int = 0, crosswalk: bool = False, texel: float = TEXEL_M) -> np.ndarray:
+                   season: int = 1, snow: int = 0, crosswalk: bool = False, texel: float = TEXEL_M,
+                   snow_pattern: int = 0) -> np.ndarray:
     """A ground tile: rows run along world -y (north at the top), columns along +x (east).
 
     Args:
@@ -385,10 +393,11 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
       snow: snow level 0..4 (0 none).
       crosswalk: paint a zebra crossing (road only).
       texel: metres per texel.
+      snow_pattern: id of the snow pack (``conditions.snow_state``): its drift pattern.
 
     Returns:
-      RGBA uint8 whose aux channel holds snow susceptibility (road 0..60, sidewalk
-      60..160, grass 200..255).
+      RGBA uint8 whose aux channel holds snow susceptibility (road 10..50, up to 180
+      along the curbs; sidewalk 90..180; grass 200..255).
     """
     rng = np.random.default_rng(seed)
     W, H = pad16(length_m / texel), pad16(width_m / texel)
@@ -400,7 +409,9 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         base = np.float32([0.30, 0.30, 0.31]) * rng.uniform(0.85, 1.15)
         speck = (rng.random((H, W), dtype=np.float32) ** 6)[..., None]
         rgb = base * (0.75 + 0.35 * fine + 0.4 * speck) * (0.85 + 0.3 * blot)
-        aux = (10 + 40 * blot[..., 0]).astype(np.uint8)
+        # Snow lies first along the curbs, where the plough piles it.
+        curb = np.clip(1.0 - np.minimum(yy, H - 1 - yy) / (1.2 * ppm), 0.0, 1.0)
+        aux = (10 + 40 * blot[..., 0] + 130 * curb ** 1.5).astype(np.uint8)
         # Patches and cracks.
         for _ in range(rng.integers(0, 4)):
             pw, ph = int(rng.uniform(0.5, 3) * ppm), int(rng.uniform(0.5, 2) * ppm)
@@ -450,7 +461,7 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         hsh = np.sin(sid * 12.9898 + seed % 97) * 43758.5453
         hsh = (hsh - np.floor(hsh))[..., None]
         rgb = base * (0.85 + 0.15 * hsh) * (0.85 + 0.25 * fine) * (0.85 + 0.25 * blot) * np.where(joint, 0.7, 1.0)[..., None]
-        aux = (70 + 80 * blot[..., 0]).astype(np.uint8)
+        aux = (90 + 90 * blot[..., 0]).astype(np.uint8)
         curb = int(0.2 * ppm)  # curb on the road side: the tile's top rows (north) by convention
         rgb[:curb] = np.float32([0.75, 0.74, 0.71]) * (0.9 + 0.1 * fine[:curb])
         rgb[curb:curb + 2] *= 0.6
@@ -470,7 +481,7 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         if season == 3:
             leaves = (rng.random((H, W)) < 0.01)
             rgb[leaves] = np.float32([0.65, 0.35, 0.1])
-    rgb = _apply_snow(rgb, aux, snow, rng)
+    rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
     return _finish(rgb, aux, blur=0.6)
 
 

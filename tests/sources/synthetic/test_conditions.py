@@ -1,0 +1,64 @@
+"""Tests of the synthetic world's winters: a persistent, climatological snow pack (Sec. IV-A, V)."""
+
+import datetime as dt
+import itertools
+
+import numpy as np
+
+from rp_jax.sources.synthetic import conditions as cond
+from rp_jax.sources.synthetic import textures as tx
+
+PITTSBURGH = (40.4406, -79.9959)
+
+
+def _winter_days(year: int):
+    d = dt.date(year, 12, 20)
+    while d <= dt.date(year + 1, 2, 28):
+        yield d
+        d += dt.timedelta(days=1)
+
+
+def test_pittsburgh_winters_are_often_snowy_and_snow_persists():
+    covered, stay = [], []
+    for year in range(2000, 2012):
+        seq = [cond.snow_state(7, d, *PITTSBURGH)[0] > 0 for d in _winter_days(year)]
+        covered += seq
+        stay += [b for a, b in itertools.pairwise(seq) if a]
+    share = np.mean(covered)
+    assert 0.3 < share < 0.8, share  # a good share of late December - February days
+    assert np.mean(stay) > 0.8  # snow on the ground today is mostly still there tomorrow
+
+
+def test_cmu_dec21_is_snowy_for_every_street_of_the_city():
+    for seed in range(6):
+        level, _, pattern, depth = cond.snow_state(seed, dt.date(2010, 12, 21), *PITTSBURGH)
+        assert level >= 2 and depth > 5.0 and pattern > 0
+
+
+def test_no_snow_in_summer_or_in_the_tropics():
+    assert cond.snow_state(3, dt.date(2011, 7, 28), *PITTSBURGH)[0] == 0
+    assert all(cond.snow_state(3, d, 20.0, -100.0)[0] == 0 for d in _winter_days(2010))
+    # Colder places have more snow.
+    def share(lat):
+        return np.mean([cond.snow_state(3, d, lat, -79.0)[0] > 0 for d in _winter_days(2005)])
+    assert share(35.0) < share(40.4) < share(46.0) or share(40.4) == share(46.0) == 1.0
+
+
+def test_snow_is_deterministic_and_conditions_carry_it():
+    a = cond.snow_state(5, dt.date(2011, 1, 20), *PITTSBURGH)
+    assert a == cond.snow_state(5, dt.date(2011, 1, 20), *PITTSBURGH)
+    when = dt.datetime(2010, 12, 21, 11, 0, tzinfo=dt.timezone(dt.timedelta(hours=-5)))
+    c = cond.conditions_at(5, *PITTSBURGH, when)
+    assert c.snow >= 2 and c.snow_pattern > 0 and c.as_meta()["snow"] == c.snow
+
+
+def test_snow_patterns_differ_between_snowfalls():
+    a = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
+    b = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734007)
+    c = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
+    np.testing.assert_array_equal(a, c)
+    assert np.mean(np.abs(a.astype(int) - b.astype(int)).max(-1) > 30) > 0.2
+    # A deeper pack covers more: sidewalks are white at level 3, not at level 1.
+    white = [np.mean(tx.ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1) > 200)
+             for s in (1, 3)]
+    assert white[1] > white[0] + 0.3
