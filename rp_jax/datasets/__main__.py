@@ -1,0 +1,204 @@
+"""Command line of the keypoint-record datasets (Sec. III-D, Fig. 6, Fig. 9).
+
+    python -m rp_jax.datasets build NAME [--config CONFIG] [--manual-dir DIR] [--data-dir DIR]
+    python -m rp_jax.datasets curves NAME [--config CONFIG] [--data-dir DIR] --out PNG
+
+``build`` builds (or finds already built) the TFDS dataset and prints the number of
+records per split, per timestamp (the slot of the image an interest point comes from) and
+per category where known. ``curves`` writes the average ground-truth repeatability curve
+of each split to ``--out`` and, where categories are known, the Fig. 9 per-category
+curves to ``<out stem>_categories.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+
+__all__ = ["main"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m rp_jax.datasets",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(q):
+        q.add_argument("name", choices=DATASET_NAMES, help="dataset")
+        q.add_argument(
+            "--config",
+            default="synthetic",
+            choices=CONFIG_NAMES,
+            help="builder config (default: synthetic)",
+        )
+        q.add_argument(
+            "--data-dir",
+            type=Path,
+            default=None,
+            help="TFDS data directory (default: $RP_JAX_DATA_DIR or ./data/tensorflow_datasets)",
+        )
+
+    b = sub.add_parser("build", help="build a dataset and print its counts")
+    common(b)
+    b.add_argument(
+        "--manual-dir",
+        type=Path,
+        default=None,
+        help="folder of the downloaded real dataset (config real)",
+    )
+    b.add_argument(
+        "--synthetic-root",
+        type=Path,
+        default=None,
+        help="folder of the synthetic layout (rendered there if absent)",
+    )
+    b.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="processes labelling viewpoints (default: min(2, cores))",
+    )
+    c = sub.add_parser("curves", help="write the average ground-truth curves as PNGs")
+    common(c)
+    c.add_argument("--out", type=Path, required=True, help="PNG of the per-split curves")
+    return p
+
+
+def _print_counts(name: str, config: str, data_dir) -> None:
+    from rp_jax import categories
+    from rp_jax.datasets import loading, statistics
+    from rp_jax.schedule import preset
+
+    labels = preset(name).labels
+    for split, n in loading.splits(name, config=config, data_dir=data_dir).items():
+        cols = loading.load_columns(
+            name, split, keys=("slot", "category", "viewpoint"), config=config, data_dir=data_dir
+        )
+        print(f"{split}: {n} records, {len(set(cols['viewpoint'].tolist()))} viewpoints")
+        per_slot = statistics.counts(cols["slot"])
+        print(
+            "  per timestamp: "
+            + ", ".join(f"{labels[s]}={per_slot.get(s, 0)}" for s in range(len(labels)))
+        )
+        per_cat = statistics.counts(cols["category"])
+        if any(c >= 0 for c in per_cat):
+            print(
+                "  per category: "
+                + ", ".join(
+                    f"{categories.NAMES.get(c, 'unknown' if c < 0 else str(c))}={k}"
+                    for c, k in per_cat.items()
+                )
+            )
+
+
+def _build(args) -> int:
+    import tensorflow_datasets as tfds
+
+    from rp_jax.datasets import loading
+
+    if args.manual_dir is not None and args.config != "real":
+        raise _UsageError(f"--manual-dir is for --config real, not {args.config}")
+    if args.synthetic_root is not None and args.config == "real":
+        raise _UsageError("--synthetic-root is for the synthetic configs, not real")
+    if args.workers is not None and args.workers < 1:
+        raise _UsageError(f"--workers must be >= 1, got {args.workers}")
+    if args.manual_dir is not None and not args.manual_dir.is_dir():
+        raise _UsageError(f"--manual-dir {args.manual_dir} is not a folder")
+    builder = loading.get_builder(
+        args.name,
+        config=args.config,
+        data_dir=args.data_dir,
+        synthetic_root=args.synthetic_root,
+        workers=args.workers,
+    )
+    start = time.perf_counter()
+    if builder.is_prepared():
+        print(f"{args.name}/{args.config} already built in {builder.data_dir}")
+    else:
+        config = tfds.download.DownloadConfig(
+            manual_dir=None if args.manual_dir is None else str(args.manual_dir)
+        )
+        builder.download_and_prepare(download_config=config)
+        print(
+            f"built {args.name}/{args.config} in {time.perf_counter() - start:.1f} s "
+            f"-> {builder.data_dir}"
+        )
+    _print_counts(args.name, args.config, args.data_dir)
+    return 0
+
+
+def _curves(args) -> int:
+    from rp_jax import categories, plots
+    from rp_jax.datasets import loading, statistics
+    from rp_jax.schedule import preset
+
+    if args.out.suffix.lower() != ".png":
+        raise _UsageError(f"--out must name a .png file, got {args.out}")
+    labels = preset(args.name).labels
+    per_split, per_group = {}, {g: {} for g in categories.FIGURE9_GROUPS}
+    for split in loading.splits(args.name, config=args.config, data_dir=args.data_dir):
+        cols = loading.load_columns(
+            args.name,
+            split,
+            keys=("label", "label_mask", "category"),
+            config=args.config,
+            data_dir=args.data_dir,
+        )
+        if not len(cols["label"]):
+            continue
+        per_split[split] = statistics.average_curve(cols["label"], cols["label_mask"])
+        for group, curve in statistics.category_curves(
+            cols["label"], cols["label_mask"], cols["category"]
+        ).items():
+            per_group[group][split] = curve
+    if not per_split:
+        raise _UsageError(f"{args.name}/{args.config} has no records to plot")
+    title = f"{args.name} ({args.config}): average ground-truth repeatability"
+    written = [plots.plot_average_curves(per_split, labels, args.out, title=title)]
+    for split, (mean, count) in per_split.items():
+        print(
+            f"{split}: "
+            + ", ".join(f"{lab}={m:.3f}" for lab, m, n in zip(labels, mean, count) if n)
+        )
+    if any(per_group.values()):
+        out = args.out.with_name(f"{args.out.stem}_categories.png")
+        written.append(
+            plots.plot_category_curves(
+                per_group, labels, out, title=f"{args.name} ({args.config}): per category"
+            )
+        )
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+class _UsageError(Exception):
+    """A bad combination of arguments: printed without a traceback, exit status 2."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the exit status."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    for noisy in ("absl", "matplotlib"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
+    from rp_jax.datasets.loading import NotBuiltError
+    from rp_jax.sources.layout import LayoutError
+
+    try:
+        return _build(args) if args.command == "build" else _curves(args)
+    except (_UsageError, NotBuiltError, LayoutError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

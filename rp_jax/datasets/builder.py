@@ -1,0 +1,628 @@
+"""Shared logic of the three TFDS builders (Sec. III-D, Sec. IV-A-1, Sec. IV-B-1).
+
+A builder reads a layout with its ``rp_jax.sources`` reader, groups the captures by
+viewpoint, splits the viewpoints as ``data_specs/<name>.json`` says, and has
+``rp_jax.groundtruth.label_viewpoint`` label each viewpoint (one viewpoint is the unit of
+work, cached under ``<download_dir>/groundtruth/<name>/<config>/`` so an interrupted build
+resumes). It writes one record per interest point (``features``) as array_record; no
+TensorFlow is needed to write or read (``builder.as_data_source(split)``).
+
+Configs: ``synthetic`` (default; renders the synthetic world at full size into
+``<data_dir>/../synthetic/<name>`` when absent, then labels it), ``synthetic_small``,
+``synthetic_tiny`` (tests, quick runs) and ``real`` (reads ``manual_dir``).
+
+Scaling out: ``label_viewpoint_examples(job)`` is a pure, picklable function of one
+``ViewpointJob``; under Apache Beam (``tfds build ... --beam_pipeline_options=...``) the
+builder maps it with ``beam.Create(jobs) | beam.FlatMap(label_viewpoint_examples)``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import inspect
+import json
+import logging
+import os
+import types
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+import tensorflow_datasets as tfds
+from etils import epath
+from tensorflow_datasets.core import utils as tfds_utils
+
+from rp_jax import categories
+from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+from rp_jax.datasets import features as features_lib
+from rp_jax.groundtruth import GroundTruthConfig, label_viewpoint, label_viewpoints
+from rp_jax.schedule import load_spec, preset
+from rp_jax.sources import cmu_seasons, robotcar, webcam_clipart
+from rp_jax.sources.capture import Capture
+from rp_jax.sources.layout import LayoutError
+
+__all__ = [
+    "CONFIG_NAMES",
+    "DATASET_NAMES",
+    "RepeatabilityBuilder",
+    "RepeatabilityConfig",
+    "ViewpointJob",
+    "builder_configs",
+    "ground_truth_config",
+    "label_viewpoint_examples",
+    "read_captures",
+    "split_viewpoints",
+    "synthetic_root",
+    "viewpoint_jobs",
+]
+
+log = logging.getLogger(__name__)
+
+_GENERATION_JSON = Path("_synthetic") / "generation.json"  # written by synthetic.generate
+
+
+# ----------------------------------------------------------------------------- configs
+
+
+@dataclasses.dataclass(eq=False)
+class RepeatabilityConfig(tfds.core.BuilderConfig):
+    """A BuilderConfig: which layout is read and how many interest points per image.
+
+    Attributes:
+      source: ``"synthetic"`` (rendered by ``rp_jax.sources.synthetic``) or ``"real"``
+        (the downloaded dataset in ``manual_dir``).
+      size: synthetic size, ``"full"``, ``"small"`` or ``"tiny"`` (ignored for real).
+      seed: synthetic world seed.
+      max_keypoints: interest points per image (strongest first), see GroundTruthConfig;
+        all of them take part in matching.
+      records_per_image: how many of an image's interest points become records (a seeded
+        random choice; 0 = all). Matching against every keypoint keeps the labels right,
+        while the dataset stays near the paper's size (72,160 training points from 7
+        Webcam Clip Art viewpoints, about 120 per image).
+    """
+
+    source: str = "synthetic"
+    size: str = "full"
+    seed: int = 0
+    max_keypoints: int = 1000
+    records_per_image: int = 0
+
+
+def builder_configs() -> list[RepeatabilityConfig]:
+    """The four configs every builder offers, ``synthetic`` first (the default)."""
+    return [
+        RepeatabilityConfig(
+            name="synthetic",
+            source="synthetic",
+            size="full",
+            description="The synthetic world at the paper's scale (rendered if absent).",
+        ),
+        RepeatabilityConfig(
+            name="synthetic_small",
+            source="synthetic",
+            size="small",
+            max_keypoints=500,
+            description="A smaller synthetic world for a quick look (minutes).",
+        ),
+        RepeatabilityConfig(
+            name="synthetic_tiny",
+            source="synthetic",
+            size="tiny",
+            max_keypoints=150,
+            description="A tiny synthetic world for tests (seconds).",
+        ),
+        RepeatabilityConfig(
+            name="real",
+            source="real",
+            description="The real dataset, downloaded by hand into manual_dir.",
+        ),
+    ]
+
+
+def ground_truth_config(name: str, max_keypoints: int) -> GroundTruthConfig:
+    """How a dataset's interest points are verified (Sec. IV-A-1, IV-B-1).
+
+    Webcam Clip Art: static camera, an inlier moves < 5 px. CMU Seasons and RobotCar:
+    known poses (epipolar + triangulation checks).
+    """
+    if name == "webcam_clipart":
+        threshold = float(load_spec(name).get("inlier_pixel_threshold", 5.0))
+        return GroundTruthConfig(
+            verification="static", static_pixel_threshold=threshold, max_keypoints=max_keypoints
+        )
+    if name in ("cmu_seasons", "robotcar"):
+        return GroundTruthConfig(verification="pose", max_keypoints=max_keypoints)
+    raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
+
+
+# ----------------------------------------------------------------------------- pixels
+
+
+def load_category(capture: Capture) -> np.ndarray | None:
+    """The capture's category map (uint8 [H, W], 255 unlabelled) as stored, or None."""
+    path = capture.meta.get("segmentation_path")
+    if path is None:
+        return None
+    cmap = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if cmap is None:
+        log.warning(
+            "unreadable category map %s for %s; categories unknown", path, capture.image_path
+        )
+        return None
+    if cmap.ndim == 3:
+        cmap = cmap[..., 0]
+    return cmap.astype(np.uint8)
+
+
+def _cmu_load_category(capture: Capture) -> np.ndarray | None:
+    """CMU category map undistorted like ``cmu_seasons.load_image`` (nearest neighbour)."""
+    cmap = load_category(capture)
+    cam = capture.camera
+    if cmap is None or not (cam.distortion.size and np.any(cam.distortion != 0)):
+        return cmap
+    map_x, map_y = cv2.initUndistortRectifyMap(
+        cam.K, cam.distortion, None, cam.K, (cmap.shape[1], cmap.shape[0]), cv2.CV_32FC1
+    )
+    return cv2.remap(
+        cmap,
+        map_x,
+        map_y,
+        cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=categories.UNLABELLED_PIXEL,
+    )
+
+
+def _robotcar_load_category(capture: Capture) -> np.ndarray | None:
+    """RobotCar category map, remapped with the distortion LUT when ``load_image`` is."""
+    cmap = load_category(capture)
+    lut_path = capture.meta.get("distortion_lut")
+    if cmap is None or lut_path is None:
+        return cmap
+    lut = robotcar._load_lut(Path(lut_path), cmap.shape[:2])  # the reader's own LUT cache
+    if lut is None:
+        return cmap
+    return cv2.remap(
+        cmap,
+        lut[0],
+        lut[1],
+        cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=categories.UNLABELLED_PIXEL,
+    )
+
+
+def _cmu_camera_matrix(capture: Capture) -> np.ndarray:
+    """K of the undistorted pixels ``cmu_seasons.load_image`` returns."""
+    return cmu_seasons.undistorted_camera(capture).K
+
+
+# Module-level functions only: a job is pickled to worker processes (or Beam workers).
+_LOAD_IMAGE = {
+    "webcam_clipart": webcam_clipart.load_image,
+    "cmu_seasons": cmu_seasons.load_image,
+    "robotcar": robotcar.load_image,
+}
+_LOAD_CATEGORY = {
+    "webcam_clipart": load_category,
+    "cmu_seasons": _cmu_load_category,
+    "robotcar": _robotcar_load_category,
+}
+_CAMERA_OF = {"webcam_clipart": None, "cmu_seasons": _cmu_camera_matrix, "robotcar": None}
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def _cmu_slices(root: Path, splits: Mapping[str, Sequence[int]]) -> list[int]:
+    wanted = sorted({int(n) for ns in splits.values() for n in ns})
+    if not root.is_dir():
+        return wanted  # the reader raises LayoutError naming what it expected
+    found = cmu_seasons.find_slices(root)
+    present = [n for n in wanted if n in found]
+    if not present:
+        return wanted  # ditto, listing the slices found
+    missing = [n for n in wanted if n not in found]
+    if missing:
+        log.info("%s: slices %s absent (a reduced layout); reading %s", root, missing, present)
+    return present
+
+
+def read_captures(name: str, root: Path) -> list[Capture]:
+    """Read a dataset layout with its reader; captures carry (cycle, slot) and viewpoint.
+
+    Raises:
+      LayoutError: ``root`` is not in the expected layout (the message lists the paths).
+    """
+    root = Path(root)
+    if name == "webcam_clipart":
+        return webcam_clipart.read(root)
+    if name == "cmu_seasons":
+        splits = load_spec(name)["splits"]
+        return cmu_seasons.read(root, slices=_cmu_slices(root, splits))
+    if name == "robotcar":
+        return robotcar.read(root)
+    raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
+
+
+def _webcam_splits(source: str, scenes: Sequence[str]) -> dict[str, list[str]]:
+    spec = load_spec("webcam_clipart")["splits"]
+    lists = spec.get(source) or {}
+    if lists.get("train") is None or lists.get("test") is None:
+        # The paper does not name its scenes: hold out the last scene (7 train / 1 test).
+        ordered = sorted(scenes)
+        held_out = ordered[-1:] if len(ordered) > 1 else []
+        log.warning(
+            "data_specs/webcam_clipart.json names no %s scenes; test = %s, train = the other %d",
+            source,
+            held_out,
+            len(ordered) - len(held_out),
+        )
+        return {"train": [s for s in ordered if s not in held_out], "test": held_out}
+    known = set(lists["train"]) | set(lists["test"])
+    unknown = sorted(set(scenes) - known)
+    if unknown:
+        raise ValueError(
+            f"scenes {unknown} are in no split of data_specs/webcam_clipart.json "
+            f"(splits.{source}: train {lists['train']}, test {lists['test']})"
+        )
+    return {split: [s for s in lists[split] if s in scenes] for split in ("train", "test")}
+
+
+def _slice_of(viewpoint: str) -> int:
+    head = viewpoint.split("/", 1)[0]
+    if not head.startswith("slice") or not head[5:].isdigit():
+        raise ValueError(f"CMU viewpoint id {viewpoint!r} is not 'slice<N>/...'")
+    return int(head[5:])
+
+
+def split_viewpoints(name: str, source: str, viewpoints: Iterable[str]) -> dict[str, list[str]]:
+    """Viewpoint ids of each split, as ``data_specs/<name>.json`` says (Sec. IV-A-1).
+
+    Webcam Clip Art: listed scenes (7 train / 1 test; for a real layout with no list, the
+    last scene in sorted order is the test scene). CMU Seasons: slices 6, 7, 9 train and
+    8 test. RobotCar: all train. Empty splits are dropped.
+    """
+    viewpoints = sorted(set(viewpoints))
+    if name == "webcam_clipart":
+        out = _webcam_splits(source, viewpoints)
+    elif name == "cmu_seasons":
+        spec = load_spec(name)["splits"]
+        out = {
+            split: [v for v in viewpoints if _slice_of(v) in set(slices)]
+            for split, slices in spec.items()
+        }
+    elif name == "robotcar":
+        out = {"train": viewpoints}
+    else:
+        raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
+    return {split: vps for split, vps in out.items() if vps}
+
+
+# ----------------------------------------------------------------------------- labelling
+
+
+@dataclasses.dataclass(frozen=True)
+class ViewpointJob:
+    """Everything needed to label one viewpoint; picklable (Beam, processes).
+
+    Attributes:
+      dataset: one of ``DATASET_NAMES`` (selects the reader's ``load_image`` etc.).
+      viewpoint: the viewpoint id.
+      captures: its captures, (cycle, slot) assigned.
+      num_timestamps: T of the dataset's schedule.
+      config: ground-truth settings.
+      cache_dir: per-viewpoint cache (resume), or None.
+    """
+
+    dataset: str
+    viewpoint: str
+    captures: tuple[Capture, ...]
+    num_timestamps: int
+    config: GroundTruthConfig
+    cache_dir: str | None = None
+    records_per_image: int = 0
+    seed: int = 0
+
+    def label_kwargs(self) -> dict:
+        """Keyword arguments of ``groundtruth.label_viewpoint(s)`` for this dataset."""
+        return {
+            "load_image": _LOAD_IMAGE[self.dataset],
+            "num_timestamps": self.num_timestamps,
+            "config": self.config,
+            "cache_dir": self.cache_dir,
+            "camera_of": _CAMERA_OF[self.dataset],
+            "load_category": _LOAD_CATEGORY[self.dataset],
+        }
+
+
+def select_records(records: Mapping[str, np.ndarray], per_image: int, seed: int = 0) -> dict:
+    """Keep at most ``per_image`` rows of each image, a seeded random choice (0 = all rows).
+
+    The choice depends only on (seed, viewpoint, image id, its row count), so a rebuild or a
+    Beam run picks the same records.
+    """
+    n = len(records["image_id"])
+    if per_image <= 0 or n == 0:
+        return dict(records)
+    keep = np.zeros(n, bool)
+    image_ids = np.asarray(records["image_id"]).astype(str)
+    viewpoints = np.asarray(records["viewpoint"]).astype(str)
+    for image_id in np.unique(image_ids):
+        rows = np.flatnonzero(image_ids == image_id)
+        if len(rows) <= per_image:
+            keep[rows] = True
+            continue
+        key = f"{viewpoints[rows[0]]}|{image_id}".encode()
+        digest = int.from_bytes(hashlib.sha1(key).digest()[:4], "little")
+        rng = np.random.default_rng([seed, digest])
+        keep[np.sort(rng.choice(rows, per_image, replace=False))] = True
+    return {k: np.asarray(v)[keep] for k, v in records.items()}
+
+
+def label_viewpoint_examples(job: ViewpointJob) -> list[tuple[str, dict]]:
+    """``(key, example)`` of the interest points of one viewpoint (pure; Beam-mappable)."""
+    records = label_viewpoint(list(job.captures), **job.label_kwargs())
+    records = select_records(records, job.records_per_image, job.seed)
+    return list(features_lib.records_to_examples(records))
+
+
+def viewpoint_jobs(
+    name: str,
+    captures: Sequence[Capture],
+    viewpoint_ids: Sequence[str],
+    *,
+    config: GroundTruthConfig,
+    cache_dir: str | Path | None,
+    records_per_image: int = 0,
+    seed: int = 0,
+) -> list[ViewpointJob]:
+    """One ``ViewpointJob`` per viewpoint id (captures grouped by ``capture.viewpoint``)."""
+    by_viewpoint: dict[str, list[Capture]] = {}
+    for c in captures:
+        by_viewpoint.setdefault(c.viewpoint, []).append(c)
+    T = preset(name).num_timestamps
+    return [
+        ViewpointJob(
+            name,
+            vp,
+            tuple(by_viewpoint[vp]),
+            T,
+            config,
+            None if cache_dir is None else str(cache_dir),
+            records_per_image,
+            seed,
+        )
+        for vp in viewpoint_ids
+    ]
+
+
+# ----------------------------------------------------------------------------- synthetic
+
+
+def synthetic_root(data_dir_root: str | Path, name: str, size: str, seed: int = 0) -> Path:
+    """Where a synthetic layout goes: ``<data_dir>/../synthetic/<name>[_<size>][_seed<s>]``."""
+    folder = name if size == "full" else f"{name}_{size}"
+    if seed:
+        folder += f"_seed{seed}"
+    return Path(data_dir_root).resolve().parent / "synthetic" / folder
+
+
+def ensure_synthetic(name: str, root: Path, *, size: str, seed: int, workers: int | None) -> Path:
+    """Render the synthetic preset into ``root`` unless a finished one is there.
+
+    ``generate`` is itself resumable (existing frames are skipped); its
+    ``_synthetic/generation.json`` marks a finished layout.
+
+    Raises:
+      ValueError: ``root`` holds a synthetic layout of another preset, size or seed.
+    """
+    marker = root / _GENERATION_JSON
+    if marker.is_file():
+        done = json.loads(marker.read_text())
+        want = {"preset": name, "size": size, "seed": seed}
+        have = {k: done.get(k) for k in want}
+        if have != want:
+            raise ValueError(
+                f"{root} holds the synthetic layout {have}, not {want}; "
+                "remove it or choose another synthetic_root"
+            )
+        return root
+    from rp_jax.sources.synthetic import generate
+
+    log.info("rendering the synthetic %s world (%s) into %s", name, size, root)
+    return generate(name, root, size=size, seed=seed, workers=workers)
+
+
+# ----------------------------------------------------------------------------- TF-free writing
+
+
+class _NeverRaised(Exception):
+    """Stands in for ``tf.errors.ResourceExhaustedError`` (Python I/O raises OSError)."""
+
+
+# What TFDS's shuffler needs of TensorFlow: local file I/O.
+_PYTHON_FILE_IO = types.SimpleNamespace(
+    io=types.SimpleNamespace(
+        gfile=types.SimpleNamespace(
+            GFile=lambda path, mode: open(os.fspath(path), mode),  # noqa: SIM115
+            exists=lambda path: os.path.exists(os.fspath(path)),
+            remove=lambda path: os.remove(os.fspath(path)),
+        )
+    ),
+    errors=types.SimpleNamespace(ResourceExhaustedError=_NeverRaised),
+)
+
+
+def _tensorflow_installed() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("tensorflow") is not None
+
+
+def _raise_open_file_limit(wanted: int) -> None:
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft != resource.RLIM_INFINITY and soft < wanted:
+        new = wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
+        resource.setrlimit(resource.RLIMIT_NOFILE, (new, hard))
+
+
+@contextlib.contextmanager
+def tf_free_shuffler():
+    """Let TFDS write splits larger than its 1 GB in-memory buffer without TensorFlow.
+
+    Past ``MAX_MEM_BUFFER_SIZE`` TFDS's shuffler spills examples to 1000 bucket files
+    through ``tf.io.gfile`` (``tensorflow_datasets/core/shuffle.py``), the only step of a
+    generator build that needs TensorFlow. Without TensorFlow, this points that module's
+    ``tf`` at Python's local file I/O for the duration (local data dirs only), and raises
+    the open-file limit for the buckets. With TensorFlow installed it does nothing.
+    """
+    if _tensorflow_installed():
+        yield
+        return
+    from tensorflow_datasets.core import shuffle
+
+    _raise_open_file_limit(shuffle.BUCKETS_NUMBER + 256)
+    previous = shuffle.tf
+    shuffle.tf = _PYTHON_FILE_IO
+    try:
+        yield
+    finally:
+        shuffle.tf = previous
+
+
+# ----------------------------------------------------------------------------- builder
+
+
+def _default_workers() -> int:
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count() or 1
+    return max(1, min(2, cores))
+
+
+class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=True):
+    """Base of the three builders; a subclass sets ``DATASET`` and the TFDS class fields.
+
+    Extra constructor arguments (also through ``tfds.builder(name, ...)``):
+      synthetic_root: where the synthetic layout is (or is rendered); default
+        ``synthetic_root(data_dir, name, size, seed)``.
+      workers: processes labelling viewpoints in parallel (default min(2, cores)).
+      file_format: default ``"array_record"`` (random access, no TensorFlow).
+    """
+
+    DATASET: str = ""
+    BUILDER_CONFIGS = builder_configs()
+    DEFAULT_CONFIG_NAME = "synthetic"
+
+    def __init__(
+        self,
+        *,
+        synthetic_root: str | Path | None = None,
+        workers: int | None = None,
+        file_format=None,
+        **kwargs,
+    ):
+        self._synthetic_root = None if synthetic_root is None else Path(synthetic_root)
+        self._workers = workers or _default_workers()
+        self._use_beam = False
+        super().__init__(file_format=file_format or "array_record", **kwargs)
+        self._original_state.update(
+            synthetic_root=synthetic_root, workers=workers, file_format=file_format
+        )
+
+    @tfds_utils.classproperty
+    @classmethod
+    def code_path(cls) -> epath.Path:
+        # TFDS's own lookup imports ``importlib_resources`` (not installed here) for a
+        # builder defined in a package; the file of the class is all it needs.
+        return epath.Path(inspect.getfile(cls))
+
+    # -- TFDS hooks
+
+    def _info(self) -> tfds.core.DatasetInfo:
+        T = preset(self.DATASET).num_timestamps
+        return self.dataset_info_from_configs(
+            features=features_lib.features_dict(T),
+            supervised_keys=None,
+            metadata=tfds.core.MetadataDict(
+                schedule=preset(self.DATASET).to_dict(),
+                num_timestamps=T,
+            ),
+        )
+
+    def _download_and_prepare(self, dl_manager, download_config, **kwargs):
+        # Beam is used only when asked for (tfds build --beam_pipeline_options=...).
+        self._use_beam = bool(download_config.beam_runner or download_config.beam_options)
+        with tf_free_shuffler():
+            return super()._download_and_prepare(dl_manager, download_config, **kwargs)
+
+    def layout_root(self, dl_manager) -> Path:
+        """The folder read: ``manual_dir`` (real) or the synthetic layout (rendered if absent)."""
+        cfg = self.builder_config
+        if cfg.source == "real":
+            try:
+                return Path(dl_manager.manual_dir)
+            except AssertionError as err:  # TFDS: absent or empty, with the instructions
+                raise LayoutError(str(err)) from err
+        root = self._synthetic_root or synthetic_root(
+            self._data_dir_root, self.DATASET, cfg.size, cfg.seed
+        )
+        return ensure_synthetic(
+            self.DATASET, root, size=cfg.size, seed=cfg.seed, workers=self._workers
+        )
+
+    def cache_dir(self, dl_manager) -> Path:
+        """Per-viewpoint ground-truth cache of this dataset and config (resume)."""
+        return (
+            Path(dl_manager.download_dir) / "groundtruth" / self.DATASET / self.builder_config.name
+        )
+
+    def _split_generators(self, dl_manager):
+        cfg = self.builder_config
+        root = self.layout_root(dl_manager)
+        try:
+            captures = read_captures(self.DATASET, root)
+        except LayoutError as err:
+            if cfg.source == "real":
+                raise LayoutError(f"{err}\n\n{self.MANUAL_DOWNLOAD_INSTRUCTIONS}") from err
+            raise
+        if not captures:
+            raise LayoutError(
+                f"{root}: the {self.DATASET} reader found no usable capture "
+                "(see the read summary logged above)"
+            )
+        splits = split_viewpoints(self.DATASET, cfg.source, {c.viewpoint for c in captures})
+        gt_config = ground_truth_config(self.DATASET, cfg.max_keypoints)
+        cache = self.cache_dir(dl_manager)
+        log.info("%s/%s: %s", self.DATASET, cfg.name, {s: len(v) for s, v in splits.items()})
+        return {
+            split: self._generate_examples(
+                viewpoint_jobs(self.DATASET, captures, vps, config=gt_config, cache_dir=cache,
+                               records_per_image=cfg.records_per_image, seed=cfg.seed)
+            )
+            for split, vps in splits.items()
+        }
+
+    def _generate_examples(self, jobs: Sequence[ViewpointJob]):
+        if self._use_beam:
+            beam = tfds.core.lazy_imports.apache_beam
+            return beam.Create(list(jobs)) | beam.FlatMap(label_viewpoint_examples)
+        return self._generate_locally(jobs)
+
+    def _generate_locally(self, jobs: Sequence[ViewpointJob]):
+        if not jobs:
+            return
+        kwargs = jobs[0].label_kwargs()
+        by_viewpoint = {j.viewpoint: list(j.captures) for j in jobs}
+        per_image, seed = jobs[0].records_per_image, jobs[0].seed
+        for _, records in label_viewpoints(by_viewpoint, workers=self._workers, **kwargs):
+            yield from features_lib.records_to_examples(select_records(records, per_image, seed))

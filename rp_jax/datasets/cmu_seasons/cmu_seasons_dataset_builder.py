@@ -1,0 +1,40 @@
+"""Extended CMU Seasons keypoint records with repeatability labels (Sec. III-D, IV-A-1).
+
+Slices 6, 7, 9 train and 8 test; T = 12 dates of one year (M = 1); viewpoints grouped by
+ground-truth pose; an interest point is an inlier when its match agrees with the known
+poses (epipolar and triangulation checks). Category ids (Fig. 9) come from the
+``segmentation/`` maps when present. Reading, splitting and labelling live in
+``rp_jax.sources``, ``data_specs/cmu_seasons.json`` and ``rp_jax.groundtruth``.
+"""
+
+from typing import ClassVar
+
+import tensorflow_datasets as tfds
+
+from rp_jax.datasets import builder
+
+
+class Builder(builder.RepeatabilityBuilder):
+    """TFDS builder ``cmu_seasons`` (configs synthetic, synthetic_small/_tiny, real)."""
+
+    DATASET = "cmu_seasons"
+    BUILDER_CONFIGS = builder.builder_configs()
+    VERSION = tfds.core.Version("1.0.0")
+    RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.0.0": "Initial release: SIFT interest points on undistorted images, pose-based "
+        "verification, y^j over the paper's 12 dates.",
+    }
+    MANUAL_DOWNLOAD_INSTRUCTIONS = """\
+    Download Extended CMU Seasons (visuallocalization.net) and extract slices 6-9 into
+    manual_dir (default <data_dir>/downloads/manual/, or --manual-dir):
+
+        <manual_dir>/intrinsics.txt
+        <manual_dir>/slice{N}/database/img_<i>_<c0|c1>_<unix_us>us.jpg
+        <manual_dir>/slice{N}/query/img_<i>_<c0|c1>_<unix_us>us.jpg
+        <manual_dir>/slice{N}/ground-truth-database-images-slice{N}.txt
+        <manual_dir>/_evaluation/ground-truth-query-images-slice{N}.txt   optional
+        <manual_dir>/segmentation/slice{N}/<database|query>/<stem>.png     optional
+
+    Query images without a ground-truth pose cannot be grouped into viewpoints and are
+    skipped.
+    """

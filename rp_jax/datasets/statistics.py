@@ -1,0 +1,61 @@
+"""Summaries of built keypoint records: counts and average ground-truth curves.
+
+The average repeatability function over all samples of a split (Fig. 6 of the paper) is,
+at each timestamp j, the mean of y^j over the interest points whose mask is set there;
+Fig. 9 takes the same mean within each category group (building, vegetation, vehicle,
+background). These are the numbers ``rp_jax.plots`` draws.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from rp_jax import categories
+
+__all__ = ["average_curve", "category_curves", "counts"]
+
+
+def average_curve(label: np.ndarray, label_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masked mean of the labels at each timestamp.
+
+    Args:
+      label: float [N, T] ground-truth repeatability.
+      label_mask: bool [N, T], True where the timestamp had an image.
+
+    Returns:
+      ``(mean, count)``: float64 [T] (NaN where no interest point has the timestamp) and
+      int64 [T] (how many interest points contribute).
+    """
+    label = np.asarray(label, np.float64)
+    mask = np.asarray(label_mask, bool)
+    if label.shape != mask.shape or label.ndim != 2:
+        raise ValueError(f"label {label.shape} and label_mask {mask.shape} must be equal [N, T]")
+    count = mask.sum(axis=0).astype(np.int64)
+    total = np.where(mask, label, 0.0).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return mean, count
+
+
+def category_curves(
+    label: np.ndarray,
+    label_mask: np.ndarray,
+    category: np.ndarray,
+    groups: Mapping[str, Sequence[int]] = categories.FIGURE9_GROUPS,
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``average_curve`` within each category group (Fig. 9); empty groups are left out."""
+    category = np.asarray(category)
+    out = {}
+    for group, ids in groups.items():
+        rows = np.isin(category, np.asarray(ids))
+        if rows.any():
+            out[group] = average_curve(np.asarray(label)[rows], np.asarray(label_mask)[rows])
+    return out
+
+
+def counts(values: np.ndarray) -> dict[int, int]:
+    """Value -> how many times it occurs, sorted by value."""
+    uniq, n = np.unique(np.asarray(values), return_counts=True)
+    return {int(u): int(c) for u, c in zip(uniq, n)}

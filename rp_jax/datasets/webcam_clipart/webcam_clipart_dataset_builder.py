@@ -1,0 +1,37 @@
+"""Webcam Clip Art keypoint records with repeatability labels (Sec. III-D, Sec. IV-A-1).
+
+8 static webcam scenes (7 train, 1 test), T = 21 timestamps every 30 min 8:00-18:00,
+M = 4 days; an interest point is an inlier in another image when its match lies within
+5 px (static camera). The reading, splitting and labelling live in ``rp_jax.sources``,
+``data_specs/webcam_clipart.json`` and ``rp_jax.groundtruth``; this file only names them.
+"""
+
+from typing import ClassVar
+
+import tensorflow_datasets as tfds
+
+from rp_jax.datasets import builder
+
+
+class Builder(builder.RepeatabilityBuilder):
+    """TFDS builder ``webcam_clipart`` (configs synthetic, synthetic_small/_tiny, real)."""
+
+    DATASET = "webcam_clipart"
+    BUILDER_CONFIGS = builder.builder_configs()
+    VERSION = tfds.core.Version("1.0.0")
+    RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.0.0": "Initial release: SIFT interest points, static-camera verification (5 px), "
+        "y^j over the 21 half-hourly timestamps.",
+    }
+    MANUAL_DOWNLOAD_INSTRUCTIONS = """\
+    Download Webcam Clip Art (Lalonde et al.) and place the 8 chosen scenes in manual_dir
+    (default <data_dir>/downloads/manual/, or --manual-dir):
+
+        <manual_dir>/<scene>/YYYYMMDD_HHMMSS.jpg      (or <manual_dir>/images/<scene>/...)
+        <manual_dir>/<scene>/scene.json               optional {"timezone": "America/..."}
+        <manual_dir>/<scene>/metadata.csv             optional name,datetime overrides
+        <manual_dir>/segmentation/<scene>/<stem>.png  optional category maps
+
+    Name the train and test scenes in data_specs/webcam_clipart.json (splits.real); if
+    they are not named, the last scene in sorted order is the test scene.
+    """

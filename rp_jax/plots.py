@@ -1,0 +1,311 @@
+"""Figures of repeatability curves (Figs. 6, 7/8 and 9 of the paper).
+
+Fig. 6: the average repeatability function over all samples of a split, x = the T
+timestamps of the cycle (``TimeSchedule.labels``: ``"08:00"`` ... or ``"Mar 04"`` ...).
+Fig. 9: the same per category group (building, vegetation, vehicle, background), one
+panel each. Curves are computed elsewhere (``rp_jax.datasets.statistics``); this module
+only draws and writes PNGs (atomically: temporary name, then rename). It uses
+matplotlib's object API with the Agg canvas, so it never touches pyplot's global state.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "plot_average_curves",
+    "plot_category_curves",
+    "plot_examples",
+    "experiment_figures",
+    "save_figure",
+]
+
+
+def _new_figure(width: float, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=100)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_figure(fig, out: str | Path) -> Path:
+    """Write ``fig`` as a PNG at ``out`` atomically; returns the path."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+        os.replace(tmp, out)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return out
+
+
+def _mean_and_count(curve) -> tuple[np.ndarray, np.ndarray | None]:
+    if isinstance(curve, tuple):
+        return np.asarray(curve[0], np.float64), np.asarray(curve[1])
+    return np.asarray(curve, np.float64), None
+
+
+def _draw(ax, curves: Mapping[str, object], slot_labels: Sequence[str]) -> None:
+    x = np.arange(len(slot_labels))
+    for name, curve in curves.items():
+        mean, count = _mean_and_count(curve)
+        if mean.shape != (len(slot_labels),):
+            raise ValueError(
+                f"curve {name!r} has {mean.shape} values for {len(slot_labels)} timestamps"
+            )
+        label = name if count is None else f"{name} (n={int(count.max(initial=0))})"
+        # Timestamps without data are skipped (not zeros); the others are joined by line
+        # segments, as the paper draws a repeatability function (Sec. III-A).
+        ok = np.isfinite(mean)
+        ax.plot(x[ok], mean[ok], marker="o", markersize=3, linewidth=1.5, label=label)
+    step = max(1, math.ceil(len(slot_labels) / 12))
+    ax.set_xticks(x[::step])
+    ax.set_xticklabels([slot_labels[i] for i in x[::step]], rotation=45, ha="right")
+    ax.set_ylim(0.0, 1.0)
+    ax.set_xlim(-0.5, len(slot_labels) - 0.5)
+    ax.grid(True, alpha=0.3)
+
+
+def plot_average_curves(
+    curves: Mapping[str, object],
+    slot_labels: Sequence[str],
+    out: str | Path,
+    *,
+    title: str = "Average ground-truth repeatability",
+) -> Path:
+    """Fig. 6 style: one line per curve (e.g. per split) over the cycle's timestamps.
+
+    Args:
+      curves: name -> mean [T] or (mean [T], count [T]); NaN means no data (a gap).
+      slot_labels: the T timestamp labels of the schedule.
+      out: PNG path.
+      title: figure title.
+
+    Returns:
+      ``out``.
+    """
+    if not curves:
+        raise ValueError("no curve to plot")
+    fig = _new_figure(7.0, 4.0)
+    ax = fig.add_subplot(1, 1, 1)
+    _draw(ax, curves, slot_labels)
+    ax.set_ylabel("repeatability")
+    ax.set_xlabel("timestamp")
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize="small")
+    return save_figure(fig, out)
+
+
+def plot_category_curves(
+    curves_by_group: Mapping[str, Mapping[str, object]],
+    slot_labels: Sequence[str],
+    out: str | Path,
+    *,
+    title: str = "Average ground-truth repeatability per category",
+) -> Path:
+    """Fig. 9 style: one panel per category group, one line per curve in each.
+
+    Args:
+      curves_by_group: group name (``"building"``...) -> {curve name -> mean or
+        (mean, count)}; groups with no curve are drawn empty with a note.
+      slot_labels: the T timestamp labels of the schedule.
+      out: PNG path.
+      title: figure title.
+    """
+    if not curves_by_group:
+        raise ValueError("no category group to plot")
+    groups = list(curves_by_group)
+    cols = min(2, len(groups))
+    rows = math.ceil(len(groups) / cols)
+    fig = _new_figure(6.0 * cols, 3.6 * rows)
+    for i, group in enumerate(groups):
+        ax = fig.add_subplot(rows, cols, i + 1)
+        if curves_by_group[group]:
+            _draw(ax, curves_by_group[group], slot_labels)
+            ax.legend(loc="best", fontsize="small")
+        else:
+            ax.text(
+                0.5, 0.5, "no interest points", ha="center", va="center", transform=ax.transAxes
+            )
+        ax.set_title(group)
+        ax.set_ylabel("repeatability")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, out)
+
+
+def plot_examples(
+    examples: Sequence[Mapping[str, object]],
+    slot_labels: Sequence[str],
+    out: str | Path,
+    *,
+    title: str = "Test interest points: ground truth vs prediction",
+) -> Path:
+    """Figs. 7/8 style: per interest point, its patch, the keypoint on its image, both curves.
+
+    Args:
+      examples: dicts with ``patch`` (64x64x3 uint8), ``label`` [T], ``pred`` [T],
+        optional ``label_mask`` [T], ``image`` (RGB or None), ``xy`` (pixels), ``title``.
+      slot_labels: the T timestamp labels.
+      out: PNG path.
+    """
+    if not examples:
+        raise ValueError("no example to plot")
+    n = len(examples)
+    fig = _new_figure(11.0, 2.6 * n)
+    x = np.arange(len(slot_labels))
+    step = max(1, math.ceil(len(slot_labels) / 8))
+    for i, ex in enumerate(examples):
+        ax_img = fig.add_subplot(n, 3, 3 * i + 1)
+        image = ex.get("image")
+        if image is not None:
+            ax_img.imshow(image)
+            px, py = ex["xy"]
+            ax_img.plot(
+                [px],
+                [py],
+                marker="o",
+                markersize=9,
+                markerfacecolor="none",
+                markeredgecolor="lime",
+                markeredgewidth=2,
+            )
+        else:
+            ax_img.text(
+                0.5, 0.5, "image not found", ha="center", va="center", transform=ax_img.transAxes
+            )
+        ax_img.set_axis_off()
+        ax_img.set_title(str(ex.get("title", "")), fontsize="small")
+        ax_patch = fig.add_subplot(n, 3, 3 * i + 2)
+        ax_patch.imshow(ex["patch"])
+        ax_patch.set_axis_off()
+        ax_patch.set_title("64x64 patch", fontsize="small")
+        ax = fig.add_subplot(n, 3, 3 * i + 3)
+        mask = np.asarray(ex.get("label_mask", np.ones(len(slot_labels), bool)), bool)
+        label = np.asarray(ex["label"], np.float64)
+        ax.plot(x[mask], label[mask], marker="o", markersize=3, label="ground truth")
+        ax.plot(x, np.asarray(ex["pred"]), marker="s", markersize=3, label="prediction")
+        ax.set_ylim(0.0, 1.05)
+        ax.set_xticks(x[::step])
+        ax.set_xticklabels(
+            [slot_labels[j] for j in x[::step]], rotation=45, ha="right", fontsize="x-small"
+        )
+        ax.grid(True, alpha=0.3)
+        if i == 0:
+            ax.legend(loc="best", fontsize="x-small")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, out)
+
+
+def _distinct(candidates, xy, n: int, cell: float = 24.0) -> list[int]:
+    """The first ``n`` candidates at distinct places (the same point seen in several images once)."""
+    seen, out = set(), []
+    for i in candidates:
+        key = tuple((np.asarray(xy[i]) // cell).astype(int))
+        if key not in seen:
+            seen.add(key)
+            out.append(int(i))
+        if len(out) == n:
+            break
+    return out
+
+
+def experiment_figures(
+    workdir, metrics, test, pred, schedule, config, image_loader=None
+) -> list[Path]:
+    """The figures of one experiment run (Figs. 6, 7/8 and, with categories, 9).
+
+    Args:
+      workdir: where the PNGs go.
+      metrics: the run's metrics (curves and per-category entries).
+      test: the test split's columns (patch, label, label_mask, xy, viewpoint, image_id, ...).
+      pred: [N, T] predictions.
+      schedule: the labels' TimeSchedule.
+      config: the run's config (for titles).
+      image_loader: (viewpoint, image_id) -> RGB or None, to draw keypoints on their images.
+    """
+    workdir = Path(workdir)
+    labels = list(schedule.labels)
+    name = f"{config.dataset} ({config.data_config})"
+    paths = [
+        plot_average_curves(
+            {
+                "ground truth": np.asarray(metrics["curves"]["gt"]),
+                "RP prediction": np.asarray(metrics["curves"]["pred"]),
+                "per-slot mean (baseline)": np.asarray(metrics["curves"]["per_slot_mean"]),
+                "slot-conditioned mean (baseline)": np.asarray(
+                    metrics["curves"]["slot_conditioned_mean"]
+                ),
+            },
+            labels,
+            workdir / "fig6_average_repeatability.png",
+            title=f"Average repeatability over {len(pred)} test points, {name}",
+        )
+    ]
+    mask = test["label_mask"].astype(bool)
+    err = (np.abs(pred - test["label"]) * mask).sum(1) / np.maximum(mask.sum(1), 1)
+    order = np.argsort(err)
+    # Good cases: low error among points whose curve is not flat (an informative example).
+    masked = np.where(mask, test["label"], np.nan)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = np.nanmax(masked, 1) - np.nanmin(masked, 1)
+    varied = set(np.flatnonzero(spread > 0.2).tolist())
+    good_pool = [i for i in order if i in varied] or list(order)
+    picks = [("good", i) for i in _distinct(good_pool, test["xy"], 3)]
+    picks += [("bad", i) for i in _distinct(list(order[::-1]), test["xy"], 3)]
+    examples = []
+    for kind, i in picks:
+        vp, image_id = str(test["viewpoint"][i]), str(test["image_id"][i])
+        image = image_loader(vp, image_id) if image_loader else None
+        examples.append(
+            {
+                "patch": test["patch"][i],
+                "label": test["label"][i],
+                "pred": pred[i],
+                "label_mask": mask[i],
+                "image": image,
+                "xy": test["xy"][i],
+                "title": f"{kind}: MAE {err[i]:.3f}, {vp}/{image_id}"[:70],
+            }
+        )
+    paths.append(
+        plot_examples(
+            examples,
+            labels,
+            workdir / "fig7_examples.png",
+            title=f"Test interest points (3 good, 3 bad by MAE), {name}",
+        )
+    )
+    if "per_category" in metrics:
+        groups = {
+            g: {
+                "ground truth": np.asarray(d["gt_curve"]),
+                "RP prediction": np.asarray(d["pred_curve"]),
+            }
+            for g, d in metrics["per_category"].items()
+        }
+        paths.append(
+            plot_category_curves(
+                groups,
+                labels,
+                workdir / "fig9_categories.png",
+                title=f"Average repeatability per category, {name}",
+            )
+        )
+    return paths

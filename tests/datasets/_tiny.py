@@ -1,0 +1,55 @@
+"""Shared helpers of the dataset tests: tiny synthetic builds and record checks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rp_jax.datasets import features as features_lib
+from rp_jax.datasets import loading
+
+TINY = "synthetic_tiny"
+
+
+def shared_data_dir(tmp_path_factory) -> Path:
+    # One data dir for the session: the synthetic world lands in <base>/synthetic/ and is
+    # rendered once (test_datasets_cli.py uses the same place).
+    return tmp_path_factory.getbasetemp() / "datasets_shared" / "tfds"
+
+
+def build_tiny(name: str, data_dir: Path, **kwargs):
+    b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
+    b.download_and_prepare()
+    return b
+
+
+def all_records(b, split: str) -> list[dict]:
+    source = b.as_data_source(split)
+    return source.__getitems__(list(range(len(source))))
+
+
+def check_records(records: list[dict], T: int, schedule) -> None:
+    keys = set()
+    for r in records:
+        assert set(r) == set(features_lib.FEATURE_KEYS)
+        assert r["patch"].shape == (64, 64, 3) and r["patch"].dtype == np.uint8
+        assert r["descriptor"].shape == (128,) and r["descriptor"].dtype == np.float32
+        assert r["label"].shape == (T,) and r["label"].dtype == np.float32
+        assert r["label_mask"].shape == (T,) and r["label_mask"].dtype == bool
+        for k in ("xy", "xy_normalized"):
+            assert r[k].shape == (2,) and r[k].dtype == np.float32
+        assert r["image_size"].dtype == np.int32 and np.all(r["image_size"] > 0)
+        np.testing.assert_allclose(
+            r["xy_normalized"], np.clip(r["xy"] / r["image_size"], 0, 1), atol=1e-6
+        )
+        mask, label = r["label_mask"], r["label"]
+        assert np.all((label[mask] >= 0) & (label[mask] <= 1))
+        assert mask[r["slot"]], "the image's own timestamp must be observed"
+        assert 0 <= r["cycle"] and -1 <= r["category"] <= 5
+        assert 1 <= r["month"] <= 12 and 1 <= r["day"] <= 31 and 0 <= r["hour"] < 24
+        if schedule.cycle == "day":  # the record's wall-clock time lies near its slot
+            minutes = r["hour"] * 60 + r["minute"]
+            assert abs(minutes * 60 - schedule.offsets[r["slot"]]) <= schedule.tolerance
+        keys.add((r["viewpoint"], r["image_id"], r["keypoint_id"]))
+    assert len(keys) == len(records)

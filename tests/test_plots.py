@@ -1,0 +1,76 @@
+"""rp_jax.plots: the Fig. 6 and Fig. 9 style figures are written and not blank."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from rp_jax import plots
+from rp_jax.datasets import statistics
+from rp_jax.schedule import preset
+
+
+def _coloured_pixels(path) -> int:
+    image = cv2.imread(str(path))
+    assert image is not None
+    return int((cv2.cvtColor(image, cv2.COLOR_BGR2HSV)[..., 1] > 100).sum())
+
+
+def test_average_curves_png(tmp_path):
+    labels = preset("webcam_clipart").labels
+    rise_and_fall = np.sin(np.linspace(0.2, np.pi - 0.2, len(labels)))
+    with_gap = rise_and_fall.copy()
+    with_gap[3:6] = np.nan  # no images at these timestamps
+    out = plots.plot_average_curves(
+        {"train": (rise_and_fall, np.full(len(labels), 10)), "test": with_gap},
+        labels,
+        tmp_path / "sub" / "curves.png",
+    )
+    assert out.exists() and _coloured_pixels(out) > 100
+    assert not list(out.parent.glob(".*.png")), "temporary file left behind"
+
+
+def test_an_empty_figure_has_no_coloured_lines(tmp_path):
+    labels = preset("cmu_seasons").labels
+    out = plots.plot_average_curves(
+        {"test": np.full(len(labels), np.nan)}, labels, tmp_path / "nan.png"
+    )
+    full = plots.plot_average_curves(
+        {"test": np.linspace(0, 1, len(labels))}, labels, tmp_path / "full.png"
+    )
+    assert _coloured_pixels(out) < _coloured_pixels(full)
+
+
+def test_category_curves_png(tmp_path):
+    labels = preset("cmu_seasons").labels
+    rng = np.random.default_rng(0)
+    n, T = 200, len(labels)
+    label = rng.uniform(size=(n, T)).astype(np.float32)
+    mask = rng.uniform(size=(n, T)) < 0.8
+    category = rng.choice([0, 1, 2, 3, 4], size=n)
+    groups = statistics.category_curves(label, mask, category)
+    out = plots.plot_category_curves(
+        {g: {"test": c} for g, c in groups.items()} | {"empty": {}}, labels, tmp_path / "cat.png"
+    )
+    assert _coloured_pixels(out) > 100
+
+
+def test_wrong_number_of_values_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="timestamps"):
+        plots.plot_average_curves({"a": np.zeros(3)}, ["x", "y"], tmp_path / "bad.png")
+    with pytest.raises(ValueError):
+        plots.plot_average_curves({}, ["x"], tmp_path / "none.png")
+
+
+def test_average_curve_is_the_masked_mean():
+    label = np.array([[1.0, 0.5, 0.0], [0.0, 0.5, 9.0]])
+    mask = np.array([[True, True, False], [True, False, False]])
+    mean, count = statistics.average_curve(label, mask)
+    np.testing.assert_allclose(mean[:2], [0.5, 0.5])
+    assert np.isnan(mean[2])
+    np.testing.assert_array_equal(count, [2, 1, 0])
+    groups = statistics.category_curves(label, mask, np.array([0, 1]))
+    np.testing.assert_allclose(groups["building"][0][:2], [1.0, 0.5])
+    assert set(groups) == {"building", "vegetation"}
+    assert statistics.counts(np.array([3, 1, 3])) == {1: 1, 3: 2}
