@@ -1,0 +1,87 @@
+"""Both Sec. IV-A experiments run end to end at tiny size from their command lines."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from experiments import cli
+from experiments.cmu_seasons.config import get_config as cmu_config
+from experiments.webcam_clipart.config import get_config as webcam_config
+
+KEYS = {"test_mse", "test_mae", "curve_corr", "baselines", "counts", "timings", "curves", "figures"}
+BASELINES = {"per_slot_mean", "slot_conditioned_mean", "descriptor_knn"}
+
+
+def _not_blank(path):
+    img = cv2.imread(str(path))
+    assert img is not None, f"{path} is not a readable PNG"
+    assert img.shape[0] > 200 and img.shape[1] > 200
+    assert img.std() > 10, f"{path} looks blank"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name,get_config,figures",
+    [
+        ("webcam_clipart", webcam_config, {"fig6_average_repeatability.png", "fig7_examples.png"}),
+        (
+            "cmu_seasons",
+            cmu_config,
+            {"fig6_average_repeatability.png", "fig7_examples.png", "fig9_categories.png"},
+        ),
+    ],
+)
+def test_experiment_tiny(tmp_path, name, get_config, figures):
+    workdir = tmp_path / "run"
+    argv = ["--size", "tiny", "--workdir", str(workdir), "--tfds-dir", str(tmp_path / "tfds")]
+    assert cli.main(argv, name, get_config, "") == 0
+    metrics = json.loads((workdir / "metrics.json").read_text())
+    assert KEYS <= set(metrics)
+    assert set(metrics["baselines"]) == BASELINES
+    for m in [metrics, *metrics["baselines"].values()]:
+        assert 0.0 <= m["test_mae"] <= 1.0 and m["test_mse"] >= 0.0
+    assert metrics["counts"]["train"] > 0 and metrics["counts"]["test"] > 0
+    assert len(metrics["curves"]["gt"]) == len(metrics["schedule"]["labels"])
+    if name == "cmu_seasons":
+        assert "per_category" in metrics and "building" in metrics["per_category"]
+    assert figures <= set(metrics["figures"])
+    for f in figures:
+        _not_blank(workdir / f)
+    report = (workdir / "report.md").read_text()
+    assert "| RP (ours) |" in report and "per slot mean" in report
+
+
+def test_cli_rejects_bad_arguments(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        cli.parse(["--size", "huge"], "webcam_clipart", webcam_config, "")
+    with pytest.raises(SystemExit, match="no such field"):
+        cli.parse(["--config.num_epoch=3"], "webcam_clipart", webcam_config, "")
+    with pytest.raises(SystemExit, match="num_epochs=three"):
+        cli.parse(["--config.num_epochs=three"], "webcam_clipart", webcam_config, "")
+    with pytest.raises(SystemExit):
+        cli.parse(["--data-dir", str(tmp_path / "missing")], "webcam_clipart", webcam_config, "")
+    config, workdir = cli.parse(
+        [
+            "--config.num_epochs=3",
+            "--config.model.encoder_channels=(8, 8, 16)",
+            "--data-dir",
+            str(tmp_path),
+        ],
+        "cmu_seasons",
+        cmu_config,
+        "",
+    )
+    assert config.num_epochs == 3 and tuple(config.model.encoder_channels) == (8, 8, 16)
+    assert config.data_config == "real" and workdir.name == "cmu_seasons_real"
+
+
+def test_split_validation_holds_out_whole_viewpoints():
+    from rp_jax.experiment import split_validation
+
+    vps = np.array(["a", "a", "b", "c", "c", "d"])
+    mask = split_validation(vps, 0.25, seed=0)
+    held = set(vps[mask])
+    assert len(held) == 1 and not (held & set(vps[~mask]))
+    assert not split_validation(np.array(["a", "a"]), 0.5, seed=0).any()
