@@ -28,6 +28,7 @@ The ``"fundamental"`` mode stops at the two-view check (no SfM), a faster approx
 from __future__ import annotations
 
 import concurrent.futures as cf
+import multiprocessing as mp
 import hashlib
 import json
 import logging
@@ -650,7 +651,9 @@ def label_viewpoints(
         to_disk = cache_dir is not None
         # Cores are shared by the processes: one matching thread each.
         kwargs["matching_threads"] = 1
-        with cf.ProcessPoolExecutor(max_workers=workers) as pool:
+        # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
+        # running already, and forking a multithreaded process can deadlock.
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
             futures = {
                 pool.submit(_label_one, vp, list(caps), kwargs, to_disk): vp
                 for vp, caps in viewpoints.items()

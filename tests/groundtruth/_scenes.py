@@ -82,3 +82,30 @@ IMAGES: dict[str, np.ndarray | None] = {}
 
 def load_from_registry(capture: Capture) -> np.ndarray | None:
     return IMAGES[f"{capture.viewpoint}/{capture.image_id}"]
+
+
+def load_from_disk(capture: Capture) -> np.ndarray | None:
+    """Loader for process pools started by spawn (no registry there): reads the PNG."""
+    import cv2
+
+    img = cv2.imread(str(capture.image_path), cv2.IMREAD_COLOR)
+    return None if img is None else cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def to_disk(captures: list[Capture], folder: Path) -> list[Capture]:
+    """Write the registry's images of ``captures`` as lossless PNGs (garbage for unreadable)."""
+    import dataclasses
+
+    import cv2
+
+    out = []
+    for c in captures:
+        path = Path(folder) / c.viewpoint / f"{c.image_id}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        img = IMAGES[f"{c.viewpoint}/{c.image_id}"]
+        if img is None:
+            path.write_bytes(b"not a png")
+        else:
+            cv2.imwrite(str(path), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+        out.append(dataclasses.replace(c, image_path=path))
+    return out

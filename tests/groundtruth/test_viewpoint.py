@@ -158,7 +158,10 @@ def test_parallel_viewpoints_equal_serial(tmp_path):
     vps = {"vpA": _static_viewpoint("vpA", seed=5), "vpB": _static_viewpoint("vpB", seed=6)}
     kw = {"load_image": _scenes.load_from_registry, "num_timestamps": T, "config": STATIC}
     serial = dict(label_viewpoints(vps, workers=1, **kw))
-    parallel = dict(label_viewpoints(vps, workers=2, cache_dir=tmp_path, **kw))
+    # Worker processes are spawned: they read the same images from lossless PNGs.
+    on_disk = {vp: _scenes.to_disk(caps, tmp_path / "images") for vp, caps in vps.items()}
+    kw["load_image"] = _scenes.load_from_disk
+    parallel = dict(label_viewpoints(on_disk, workers=2, cache_dir=tmp_path / "cache", **kw))
     assert set(serial) == set(parallel) == {"vpA", "vpB"}
     for vp in vps:
         _assert_records_equal(serial[vp], parallel[vp])
