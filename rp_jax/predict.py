@@ -117,7 +117,19 @@ class Predictor:
     batch_size: int = 512
 
     def __post_init__(self):
-        self._fn = jax.jit(lambda p, x, xy, t: repeatability(p, x, xy, t, config=self.config))
+        # Data parallel over the local devices (e.g. the 2 CPU devices of
+        # rp_jax.platform.configure_cpu), as in training: the batch is split, params replicated.
+        from jax.sharding import NamedSharding, PartitionSpec as P
+
+        from rp_jax.train import make_mesh
+
+        mesh = make_mesh(0)
+        n_dev = mesh.devices.size
+        self.batch_size = -(-self.batch_size // n_dev) * n_dev  # a multiple of the devices
+        data, replicated = NamedSharding(mesh, P("data")), NamedSharding(mesh, P())
+        self._device_params = jax.device_put(self.params, replicated)
+        self._fn = jax.jit(lambda p, x, xy, t: repeatability(p, x, xy, t, config=self.config),
+                           in_shardings=(replicated, data, data, data), out_shardings=data)
 
     @property
     def num_timestamps(self) -> int:
@@ -165,7 +177,7 @@ class Predictor:
             pad = bs - (e - s)
             sl = [np.concatenate([a[s:e], np.repeat(a[e - 1:e], pad, 0)]) if pad else a[s:e]
                   for a in (patches, xy, feats)]
-            out[s:e] = np.asarray(self._fn(self.params, *sl))[: e - s]
+            out[s:e] = np.asarray(self._fn(self._device_params, *sl))[: e - s]
         return out
 
 

@@ -1,0 +1,68 @@
+"""Command line of the benchmark (the predictor of Sec. III-B/C and ground truth of III-D).
+
+    python -m experiments.benchmark [STAGE ...] [--out DIR] [--size tiny|full] [--repeats N]
+
+Stages: train, predict, match, groundtruth (default: all). Writes ``DIR/benchmark.json`` and
+``DIR/benchmark.md``; stages not run this time are kept from an earlier report of the same
+size in ``DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import sys
+
+from experiments.benchmark.run import ALL_STAGES, run_benchmark
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.benchmark",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "stages",
+        nargs="*",
+        default=[],
+        metavar="STAGE",
+        help=f"stages to run, of {', '.join(ALL_STAGES)} (default all)",
+    )
+    parser.add_argument("--out", default="runs/benchmark", help="output directory")
+    parser.add_argument("--size", choices=("tiny", "full"), default="full", help="problem size")
+    parser.add_argument(
+        "--repeats", type=int, default=5, help="timed rounds per stage (after warm-up)"
+    )
+    parser.add_argument(
+        "--torch-compile",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help="also measure torch.compile (auto: at full size only; compiling takes a minute)",
+    )
+    args = parser.parse_args(argv)
+    if args.repeats < 1:
+        parser.error("--repeats must be >= 1")
+    unknown = [s for s in args.stages if s not in ALL_STAGES]
+    if unknown:
+        parser.error(f"unknown stage(s) {unknown}; expected some of {list(ALL_STAGES)}")
+    stages = args.stages or list(ALL_STAGES)
+    torch_compile = (
+        args.size == "full" if args.torch_compile == "auto" else args.torch_compile == "yes"
+    )
+    started = dt.datetime.now().isoformat(timespec="seconds")
+    js, md = run_benchmark(
+        stages,
+        args.out,
+        size=args.size,
+        repeats=args.repeats,
+        torch_compile=torch_compile,
+        started=started,
+    )
+    print(md.read_text())
+    print(f"wrote {js} and {md}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""Run benchmark stages and write the report (the library behind ``__main__``).
+
+``run_benchmark(stages, out_dir, ...)`` is what the command line calls; notebooks and tests
+call it too. See ``stages.py`` for what each stage measures and how.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+from pathlib import Path
+
+from experiments.benchmark import report
+from experiments.benchmark import stages as stages_lib
+
+__all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
+
+ALL_STAGES = ("train", "predict", "match", "groundtruth")
+NOTES = [
+    (
+        "Each JAX configuration and the PyTorch peer run in their own worker process, started and "
+        "warmed up together, then timed in interleaved rounds (A B C ... then ... C B A) so that load "
+        "from other users of this shared machine falls on all of them alike."
+    ),
+    "Ratios are medians over rounds of (variant speed / peer speed in the same round).",
+    "Not yet in this harness: map summarization (rp_jax.mapsum summarize / K-cover) stages.",
+]
+
+
+def run_benchmark(
+    stages: list[str],
+    out_dir: str | os.PathLike,
+    *,
+    size: str = "full",
+    repeats: int = 5,
+    torch_compile: bool = False,
+    started: str | None = None,
+    progress: bool = True,
+    model_variants: dict[str, list[str]] | None = None,
+) -> tuple[Path, Path]:
+    """Run ``stages`` and write ``benchmark.json`` / ``benchmark.md`` into ``out_dir``.
+
+    Args:
+      stages: names from ``ALL_STAGES``.
+      out_dir: output directory; entries of stages not run now are kept from an earlier
+        report there if it was made at the same size.
+      size: ``"tiny"`` (tests) or ``"full"``.
+      repeats: timed rounds per stage after warm-up.
+      torch_compile: also measure ``torch.compile`` in the model stages.
+      started: a timestamp for the report (default now).
+      progress: tqdm bars.
+      model_variants: per model stage, the variants to measure (names of
+        ``stages.VARIANTS``; default ``stages.STAGE_VARIANTS``, plus ``torch_compile``).
+
+    Returns:
+      Paths of ``benchmark.json`` and ``benchmark.md``.
+    """
+    unknown = [s for s in stages if s not in ALL_STAGES]
+    if unknown:
+        raise ValueError(f"unknown stage(s) {unknown}; expected some of {list(ALL_STAGES)}")
+    if size not in stages_lib.SIZES:
+        raise ValueError(f"unknown size {size!r}; expected one of {sorted(stages_lib.SIZES)}")
+    started = started or dt.datetime.now().isoformat(timespec="seconds")
+    results = {
+        k: v
+        for k, v in report.read_results(out_dir).items()
+        if isinstance(v, dict) and v.get("size") == size and k not in stages
+    }
+    for stage in stages:
+        load_before = os.getloadavg()
+        if stage in ("train", "predict"):
+            if model_variants and stage in model_variants:
+                variants = list(model_variants[stage])
+            else:
+                variants = list(stages_lib.STAGE_VARIANTS[stage]) + (
+                    ["torch_compile"] if torch_compile else []
+                )
+            entry = stages_lib.run_model_stage(stage, size, repeats, variants, progress=progress)
+        elif stage == "match":
+            entry = stages_lib.run_match_stage(size, repeats, progress=progress)
+        else:
+            entry = stages_lib.run_groundtruth_stage(size, repeats, progress=progress)
+        # The 1-minute load average around the stage: how shared the machine was.
+        entry.update(
+            {
+                "size": size,
+                "started": started,
+                "load_average_1min": [load_before[0], os.getloadavg()[0]],
+                "cpu_count": len(os.sched_getaffinity(0)),
+            }
+        )
+        results[stage] = entry
+        report.write_reports(
+            dict(sorted(results.items(), key=lambda kv: ALL_STAGES.index(kv[0]))), out_dir, NOTES
+        )  # after every stage: a crash keeps what was measured
+    return Path(out_dir) / "benchmark.json", Path(out_dir) / "benchmark.md"

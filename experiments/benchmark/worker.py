@@ -1,0 +1,75 @@
+"""One benchmark configuration in its own process (see ``stages.py``; Sec. III-B/C, III-D).
+
+Model stages::
+
+    python -m experiments.benchmark.worker {train|predict} VARIANT SIZE
+
+set JAX's device count (from ``RP_BENCH_NUM_DEVICES``; XLA flags come in the environment)
+before JAX initialises, build and warm up the bench, print ``@@BENCH {"ready": {...}}``,
+then answer each ``measure`` line on stdin with ``@@BENCH {"speed": ...}`` until ``quit``.
+
+Ground truth::
+
+    python -m experiments.benchmark.worker groundtruth NUM_IMAGES SIZE
+
+labels one synthetic viewpoint and prints its time and peak memory, then exits.
+
+Errors are reported as ``@@BENCH {"error": "..."}`` and a non-zero exit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import traceback
+
+
+def _send(payload: dict) -> None:
+    from experiments.benchmark.stages import PROTOCOL_PREFIX
+
+    sys.stdout.write(PROTOCOL_PREFIX + json.dumps(payload) + "\n")
+    sys.stdout.flush()
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 3:
+        sys.stderr.write(__doc__)
+        return 2
+    stage, what, size_name = argv
+    try:
+        from experiments.benchmark import stages
+
+        size = stages.SIZES[size_name]
+        if stage == "groundtruth":
+            _send(stages.groundtruth_once(int(what), size))
+            return 0
+        variant = stages.VARIANTS[what]
+        if variant.impl == "jax":
+            import jax
+
+            n = int(os.environ.get("RP_BENCH_NUM_DEVICES", "1"))
+            if n > 1:
+                jax.config.update("jax_num_cpu_devices", n)
+        bench = stages.make_bench(stage, variant, size)
+        _send({"ready": bench.setup()})
+    except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
+        traceback.print_exc()
+        _send({"error": f"{type(e).__name__}: {e}"})
+        return 1
+    for line in sys.stdin:
+        command = line.strip()
+        if command == "quit":
+            break
+        if command == "measure":
+            try:
+                _send(bench.measure())
+            except Exception as e:  # noqa: BLE001 - as above
+                traceback.print_exc()
+                _send({"error": f"{type(e).__name__}: {e}"})
+                return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,173 @@
+"""Tests of the benchmark harness (experiments/benchmark): the PyTorch peer is the same
+network as ours (Sec. III-B), the statistics, and the report's shape at tiny size.
+
+No timing thresholds: speeds on a shared machine are whatever they are; only the structure
+of the report and the equality of the two implementations are checked.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from experiments.benchmark import stages
+from experiments.benchmark import torch_reference as tr
+from experiments.benchmark.__main__ import main
+from experiments.benchmark.run import run_benchmark
+
+
+def test_torch_reference_equals_ours():
+    check = stages.check_torch_equals_jax(stages.SIZES["tiny"], num_points=8, seed=1)
+    assert check["output_max_abs_diff"] <= 1e-5
+    assert check["feature_max_abs_diff"] <= 1e-5 * max(1.0, check["feature_scale"])
+    assert check["feature_scale"] > 1e-3  # the encoder features are not all zero
+    assert check["time_encoding_max_abs_diff"] <= 1e-6
+    assert check["loss_abs_diff"] <= 1e-5
+    assert check["grad_max_rel_diff"] <= 1e-4
+
+
+def test_layout_mistakes_are_detected():
+    """A wrong kernel layout or PyTorch's symmetric padding changes the features: the equality
+    check above can fail."""
+    import jax
+
+    from rp_jax import model as model_lib
+    from rp_jax.configs import default
+    from rp_jax.train import create_train_state
+
+    params = create_train_state(default.get_config(), 5, 1, jax.random.key(0)).params
+    x = np.random.default_rng(0).uniform(-0.5, 0.5, (4, 64, 64, 3)).astype(np.float32)
+    ours = np.asarray(model_lib.PatchEncoder().apply({"params": params["patch_encoder"]}, x))
+    good = tr.load_flax_params(tr.TorchRepeatabilityPredictor(5), params)
+    with torch.no_grad():
+        np.testing.assert_allclose(good.encode(torch.from_numpy(x)).numpy(), ours, atol=1e-5)
+        wrong_kernel = tr.load_flax_params(tr.TorchRepeatabilityPredictor(5), params)
+        wrong_kernel.conv1.weight.copy_(
+            wrong_kernel.conv1.weight.transpose(2, 3).clone()
+        )  # H and W swapped
+        assert np.abs(wrong_kernel.encode(torch.from_numpy(x)).numpy() - ours).max() > 1e-3
+        symmetric = tr.load_flax_params(tr.TorchRepeatabilityPredictor(5), params)
+        symmetric.conv2.padding = (1, 1)
+        feats = torch.nn.functional.relu(
+            symmetric.conv1(tr.space_to_depth_nhwc(torch.from_numpy(x), 4).permute(0, 3, 1, 2))
+        )
+        sym = symmetric.conv2(feats)[:, :, :8, :8]
+        same = good.conv2(torch.nn.functional.pad(feats, (0, 1, 0, 1)))
+        assert (sym - same).abs().max() > 1e-3
+
+
+def test_load_flax_params_rejects_other_sizes():
+    import jax
+
+    from rp_jax.configs import default
+    from rp_jax.train import create_train_state
+
+    params = create_train_state(default.get_config(), 5, 1, jax.random.key(0)).params
+    with pytest.raises(ValueError, match="fc6"):
+        tr.load_flax_params(tr.TorchRepeatabilityPredictor(7), params)
+
+
+def test_statistics_and_pairwise_ratio():
+    s = stages.summarize_samples([3.0, 1.0, 2.0])
+    assert (s["median"], s["min"], s["max"]) == (2.0, 1.0, 3.0)
+    # Pair by pair: round 1 is 2x, round 2 is 4x, round 3 is 1x -> median 2x (not 8/4).
+    assert stages.pairwise_ratio([2.0, 8.0, 1.0], [1.0, 2.0, 1.0]) == 2.0
+    with pytest.raises(ValueError):
+        stages.pairwise_ratio([1.0, 2.0], [1.0])
+
+
+def test_cpu_peak_from_cpuinfo():
+    info = (
+        "processor\t: 0\nmodel name\t: Test Xeon\ncpu MHz\t\t: 2000.000\n"
+        "flags\t\t: fpu sse avx2 fma avx512f amx_bf16\n"
+    )
+    peak = stages.cpu_peak(info, num_cores=2)
+    assert peak["isa"] == "AVX-512" and peak["amx_bf16"]
+    assert peak["fp32_peak_flops"] == pytest.approx(2 * 2 * 16 * 2 * 2.0e9)
+    avx2 = stages.cpu_peak(info.replace(" avx512f", ""), num_cores=4)
+    assert avx2["fp32_peak_flops"] == pytest.approx(4 * 2 * 8 * 2 * 2.0e9)
+
+
+def test_synthetic_descriptors_are_exact_sift_like():
+    descs = stages.synthetic_descriptors(3, 50, seed=2)
+    assert len(descs) == 3 and all(d.shape == (50, 128) and d.dtype == np.float32 for d in descs)
+    for d in descs:
+        np.testing.assert_array_equal(d, np.round(d))
+        assert d.min() >= 0 and d.max() <= 255
+
+
+def test_cli_rejects_unknown_stage(tmp_path):
+    with pytest.raises(SystemExit):
+        main(["nonsense", "--out", str(tmp_path)])
+
+
+@pytest.fixture(scope="module")
+def tiny_report(tmp_path_factory):
+    """One tiny run of every stage; the model stages with one JAX variant and the peer, to
+    keep the test short (the full run measures all variants)."""
+    out = tmp_path_factory.mktemp("bench")
+    variants = {"train": ["jax_1dev", "torch_eager"], "predict": ["jax_2dev_ynn", "torch_eager"]}
+    js, md = run_benchmark(
+        ["train", "predict", "match", "groundtruth"],
+        out,
+        size="tiny",
+        repeats=2,
+        progress=False,
+        model_variants=variants,
+    )
+    return json.loads(js.read_text()), md.read_text(), out
+
+
+@pytest.mark.slow
+def test_report_shape(tiny_report):
+    results, md, _ = tiny_report
+    assert list(results) == ["train", "predict", "match", "groundtruth"]
+    for stage in ("train", "predict", "match"):
+        e = results[stage]
+        assert e["unit"] and e["ratio"] > 0
+        for side in ("ours", "peer"):
+            assert e[side]["min"] <= e[side]["median"] <= e[side]["max"]
+            assert len(e[side]["samples"]) == 2
+        # The top-level ratio is the pairwise median of the two sides' samples.
+        assert e["ratio"] == pytest.approx(
+            stages.pairwise_ratio(e["ours"]["samples"], e["peer"]["samples"])
+        )
+    for stage in ("train", "predict"):
+        e = results[stage]
+        assert e["ours"]["flops_per_sample"] > 1e6  # tens of MFLOP per interest point
+        assert 0 < e["ours"]["fraction_of_fp32_peak"]
+        assert e["peer"]["equality"]["output_max_abs_diff"] <= 1e-5
+        assert e["ours"]["best_variant"] in e["ours"]["variants"]
+    assert (
+        results["train"]["ours"]["flops_per_sample"]
+        > results["predict"]["ours"]["flops_per_sample"]
+    )
+    assert results["match"]["identical"] is True
+    gt = results["groundtruth"]
+    assert gt["peer"] is None and gt["ratio"] is None
+    assert list(gt["ours"]["per_num_images"]) == [str(n) for n in stages.SIZES["tiny"]["gt_images"]]
+    for v in gt["ours"]["per_num_images"].values():
+        assert v["seconds"]["median"] > 0 and v["peak_rss_mb"] > 0 and v["interest_points"] > 0
+    assert set(gt["quadratic_fit"]) >= {"a", "b", "c"}
+    for heading in (
+        "## train",
+        "## predict",
+        "## match",
+        "## groundtruth",
+        "| variant | median | min | max",
+    ):
+        assert heading in md
+
+
+@pytest.mark.slow
+def test_rerun_of_one_stage_keeps_the_others(tiny_report):
+    results, _, out = tiny_report
+    run_benchmark(["match"], out, size="tiny", repeats=1, progress=False)
+    again = json.loads((out / "benchmark.json").read_text())
+    assert list(again) == list(results)
+    assert again["train"] == results["train"]
+    assert len(again["match"]["ours"]["samples"]) == 1
