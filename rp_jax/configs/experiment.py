@@ -22,7 +22,7 @@ def get_config(size: str = "full") -> ml_collections.ConfigDict:
     config.synthetic_root = ""  # where the synthetic layout is rendered ("" = beside data_dir)
     config.validation_fraction = 0.15  # share of training viewpoints held out for validation
     config.knn_k = 10  # neighbours of the descriptor-kNN baseline
-    config.num_epochs = {"tiny": 2, "small": 10, "full": 20}[size]
+    config.num_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
     config.batch_size = {"tiny": 32, "small": 128, "full": 256}[size]
     config.eval_batch_size = 256
     return config

@@ -98,6 +98,7 @@ def builder_configs() -> list[RepeatabilityConfig]:
             name="synthetic",
             source="synthetic",
             size="full",
+            records_per_image=120,
             description="The synthetic world at the paper's scale (rendered if absent).",
         ),
         RepeatabilityConfig(
@@ -105,6 +106,7 @@ def builder_configs() -> list[RepeatabilityConfig]:
             source="synthetic",
             size="small",
             max_keypoints=500,
+            records_per_image=120,
             description="A smaller synthetic world for a quick look (minutes).",
         ),
         RepeatabilityConfig(
@@ -117,6 +119,7 @@ def builder_configs() -> list[RepeatabilityConfig]:
         RepeatabilityConfig(
             name="real",
             source="real",
+            records_per_image=120,
             description="The real dataset, downloaded by hand into manual_dir.",
         ),
     ]
