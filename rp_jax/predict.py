@@ -196,6 +196,8 @@ def load(workdir: str | os.PathLike, *, step: int | None = None, batch_size: int
                              "(expected config.json, schedule.json and checkpoints/)")
     config = ml_collections.ConfigDict(json.loads(cfg_path.read_text()))
     schedule = schedule_lib.TimeSchedule.from_dict(json.loads(sched_path.read_text()))
+    if (workdir / "best").exists() and step is None:
+        ckpt_dir = workdir / "best"  # the best validation epoch (config.keep_best)
     if not ckpt_dir.exists():
         raise ValueError(f"{workdir} has no checkpoints/ directory: train first")
     manager = ocp.CheckpointManager(ckpt_dir)

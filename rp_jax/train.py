@@ -2,7 +2,10 @@
 
 ``train_and_evaluate(config, workdir, train_source, val_source)`` fits the predictor with the
 paper's MSE loss, validates each epoch, writes ``config.json``, ``schedule.json`` and
-``metrics.jsonl`` in the workdir and keeps orbax checkpoints under ``workdir/checkpoints``.
+``metrics.jsonl`` in the workdir and keeps orbax checkpoints under ``workdir/checkpoints``
+(and, with ``config.keep_best``, the parameters of the best validation epoch under
+``workdir/best``, which ``rp_jax.predict.load`` prefers: model selection on held-out
+training viewpoints, never on the test split).
 Started again on the same workdir, it resumes from the last checkpoint; because the data
 order is a pure function of (seed, epoch), a resumed run ends with the same parameters as an
 uninterrupted one.
@@ -96,11 +99,40 @@ def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -
     return TrainState.create(apply_fn=net.apply, params=params, tx=tx)
 
 
+def augment_patches(patches: jnp.ndarray, rng, *, brightness: float, contrast: float,
+                    flip: bool) -> jnp.ndarray:
+    """Photometric jitter and horizontal flips of preprocessed (centred) patches (pure).
+
+    With few training viewpoints the network otherwise learns each scene's colours; a
+    brightness shift of up to +-``brightness``, a contrast factor in 1 +- ``contrast`` and a
+    mirror image leave what makes a point repeatable (its structure) in place.
+    """
+    k1, k2, k3 = jax.random.split(rng, 3)
+    n = patches.shape[0]
+    shift = jax.random.uniform(k1, (n, 1, 1, 1), minval=-brightness, maxval=brightness)
+    gain = jax.random.uniform(k2, (n, 1, 1, 1), minval=1 - contrast, maxval=1 + contrast)
+    out = patches * gain + shift
+    if flip:
+        mirror = jax.random.bernoulli(k3, 0.5, (n, 1, 1, 1))
+        out = jnp.where(mirror, out[:, :, ::-1, :], out)
+    return out
+
+
 def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict]:
-    """One optimisation step on the masked MSE of Sec. III-C (pure; jit it)."""
+    """One optimisation step on the masked MSE of Sec. III-C (pure; jit it).
+
+    The augmentation's randomness is derived from (config.seed, step), so a resumed run
+    draws the same as an uninterrupted one.
+    """
+    patches, xy, time_features = model_inputs(batch, config)
+    aug = config.get("augment")
+    if aug is not None and (aug.brightness or aug.contrast or aug.flip):
+        rng = jax.random.fold_in(jax.random.key(config.seed), state.step)
+        patches = augment_patches(patches, rng, brightness=aug.brightness, contrast=aug.contrast,
+                                  flip=aug.flip)
 
     def loss_fn(params):
-        pred = state.apply_fn({"params": params}, *model_inputs(batch, config))
+        pred = state.apply_fn({"params": params}, patches, xy, time_features)
         return losses.mse(pred, batch["label"], batch["label_mask"], batch["mask"])
 
     loss, grads = jax.value_and_grad(loss_fn)(state.params)
@@ -179,6 +211,22 @@ def _checkpoint_manager(workdir: Path, config) -> ocp.CheckpointManager:
         (workdir / "checkpoints").absolute(),
         options=ocp.CheckpointManagerOptions(max_to_keep=config.max_checkpoints_to_keep, create=True),
     )
+
+
+def _best_manager(workdir: Path) -> ocp.CheckpointManager:
+    return ocp.CheckpointManager(
+        (workdir / "best").absolute(),
+        options=ocp.CheckpointManagerOptions(max_to_keep=1, create=True),
+    )
+
+
+def _best_val_so_far(metrics_path: Path) -> float:
+    """Lowest validation MSE recorded in metrics.jsonl (inf if none): resumes model selection."""
+    if not metrics_path.exists():
+        return float("inf")
+    vals = [json.loads(l).get("val_mse") for l in metrics_path.read_text().splitlines() if l.strip()]
+    vals = [v for v in vals if v is not None]
+    return min(vals) if vals else float("inf")
 
 
 def _state_tree(state: TrainState) -> dict:
@@ -274,6 +322,9 @@ def train_and_evaluate(
     state = jax.device_put(state, compiled.replicated)
 
     metrics_path = workdir / "metrics.jsonl"
+    keep_best = bool(config.get("keep_best", False)) and val_source is not None
+    best_manager = _best_manager(workdir) if keep_best else None
+    best_val = _best_val_so_far(metrics_path)
     for epoch in range(start_epoch, int(config.num_epochs)):
         t0 = time.perf_counter()
         batches = input_pipeline.epoch_batches(train_source, config.batch_size, seed=config.seed, epoch=epoch)
@@ -297,6 +348,11 @@ def train_and_evaluate(
         if val_source is not None and ((epoch + 1) % config.eval_every_epochs == 0 or last):
             val = evaluate(state.params, val_source, compiled, config.eval_batch_size)
             record.update({"val_mse": val["mse"], "val_mae": val["mae"]})
+        if best_manager is not None and record.get("val_mse", float("inf")) < best_val:
+            best_val = record["val_mse"]
+            record["best"] = True
+            best_manager.save(int(state.step), args=ocp.args.StandardSave(_state_tree(state)), force=True)
+            best_manager.wait_until_finished()
         if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
             manager.save(int(state.step), args=ocp.args.StandardSave(_state_tree(state)))
             manager.wait_until_finished()
@@ -308,6 +364,8 @@ def train_and_evaluate(
         if on_epoch_end is not None:
             on_epoch_end(epoch + 1, record)
     manager.close()
+    if best_manager is not None:
+        best_manager.close()
     return state
 
 

@@ -124,3 +124,43 @@ def test_bad_sizes_raise(tmp_path):
         train.train_and_evaluate(small_config(), tmp_path, task(8, 0), progress=False)
     with pytest.raises(ValueError, match="devices"):
         train.train_and_evaluate(small_config(batch_size=33), tmp_path / "x", task(64, 0), progress=False)
+
+
+def test_augment_patches_is_seeded_and_mirrors():
+    import jax.numpy as jnp
+
+    x = jnp.asarray(np.random.default_rng(0).uniform(-0.5, 0.5, (8, 64, 64, 3)), jnp.float32)
+    same = train.augment_patches(x, jax.random.key(0), brightness=0.0, contrast=0.0, flip=False)
+    np.testing.assert_allclose(same, x, atol=1e-6)
+    a = train.augment_patches(x, jax.random.key(1), brightness=0.0, contrast=0.0, flip=True)
+    mirrored = np.all(np.isclose(a, x[:, :, ::-1, :]), axis=(1, 2, 3))
+    kept = np.all(np.isclose(a, x), axis=(1, 2, 3))
+    assert np.all(mirrored | kept) and mirrored.any() and kept.any()
+    b = train.augment_patches(x, jax.random.key(2), brightness=0.2, contrast=0.2, flip=False)
+    c = train.augment_patches(x, jax.random.key(2), brightness=0.2, contrast=0.2, flip=False)
+    np.testing.assert_array_equal(b, c)
+    assert not np.allclose(b, x)
+
+
+def test_keep_best_saves_the_best_validation_epoch(tmp_path):
+    import json
+
+    from rp_jax import predict
+
+    config = small_config(keep_best=True)
+    config.augment.brightness, config.augment.flip = 0.1, True
+    src, val = task(256, 0), task(64, 1)
+    train.train_and_evaluate(config, tmp_path, src, val, progress=False)
+    records = [json.loads(l) for l in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    best = min(records, key=lambda r: r["val_mse"])
+    assert best.get("best") and (tmp_path / "best" / str(best["step"])).exists()
+    rp = predict.load(tmp_path)  # prefers best/
+    last = predict.load(tmp_path, step=records[-1]["step"])
+    b = ip.ArraySource(learnable_task.make_learnable_task(64, SCHEDULE, seed=1), ip.MODEL_KEYS)
+    from rp_jax import time_encoding
+
+    t = np.asarray(time_encoding.encode(b.arrays["hour"], b.arrays["minute"], b.arrays["day"], b.arrays["month"]))
+    mse_best = float(((rp(b.arrays["patch"], b.arrays["xy_normalized"], t) - b.arrays["label"]) ** 2).sum(1).mean())
+    assert mse_best == pytest.approx(best["val_mse"], rel=1e-3)
+    if best["step"] != records[-1]["step"]:
+        assert not np.allclose(rp.params["fc6"]["kernel"], last.params["fc6"]["kernel"])

@@ -39,6 +39,11 @@ def get_config() -> ml_collections.ConfigDict:
     config.warmup_epochs = 1.0  # linear warm-up, then cosine decay to 0
     config.weight_decay = 1e-4  # AdamW decoupled weight decay
     config.grad_clip = 1.0  # global-norm gradient clipping
+    config.augment = ml_collections.ConfigDict()
+    config.augment.brightness = 0.0  # max brightness shift of centred patches (0 = off)
+    config.augment.contrast = 0.0  # max relative contrast change (0 = off)
+    config.augment.flip = False  # random horizontal mirror of patches
+    config.keep_best = False  # keep the best-validation parameters in workdir/best
 
     # Loop, devices and checkpoints.
     config.num_devices = 0  # data-parallel devices; 0 = all local devices
