@@ -19,7 +19,7 @@ $(INSTALLED): pyproject.toml | $(PY)
 	touch $(INSTALLED)
 
 demo: $(INSTALLED)
-	$(PY) -m rp_jax.demo
+	$(PY) -m experiments.webcam_clipart
 
 test: $(INSTALLED)
 	$(PY) -m pytest -q -p no:cacheprovider

@@ -5,6 +5,12 @@
 
 T = 21 timestamps every 30 min from 8:00 to 18:00, M = 4 days, 7 training and 1 test
 viewpoint; the time input is the time of day (d = 2).
+
+Full size: the number of epochs was chosen on a held-out training scene (1 of 7, with
+``--config.validation_fraction=0.15 --config.num_epochs=8``: validation MSE lowest at epoch
+3 of 8, 1.85, then rising to 2.13 as the network fits its 6 scenes), so the default run
+trains 3 epochs on all 7 training scenes. Expected on the synthetic world: test MAE about
+0.171 against 0.173 for the per-slot mean (a margin of about 1 %).
 """
 
 from rp_jax.configs import experiment
@@ -15,4 +21,8 @@ def get_config(size: str = "full"):
     config.dataset = "webcam_clipart"
     config.schedule = "webcam_clipart"  # T = 21
     config.time_fields = "time_of_day"  # d = 2 (hour, minute)
+    if size == "full":
+        config.num_epochs = 3  # chosen on a held-out training scene (see the docstring)
+        config.validation_fraction = 0.0  # then train on all 7 training scenes
+        config.keep_best = False
     return config
