@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import sys
 from pathlib import Path
 from typing import Callable
 
@@ -93,8 +94,13 @@ def main(argv, name: str, get_config, doc: str) -> int:
 
     platform.configure_cpu()
     from rp_jax import experiment
+    from rp_jax.sources.layout import LayoutError
 
-    metrics = experiment.run(config, workdir)
+    try:
+        metrics = experiment.run(config, workdir)
+    except LayoutError as e:  # a --data-dir that is not the dataset's layout: say what is missing
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
+        return 2
     b = metrics["baselines"]
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
     print(f"test MAE {metrics['test_mae']:.4f} (per-slot mean {b['per_slot_mean']['test_mae']:.4f}, "
