@@ -24,7 +24,15 @@ import numpy as np
 
 from rp_jax import categories, evaluation, schedule as schedule_lib
 
-__all__ = ["run", "RECORD_KEYS", "split_validation"]
+__all__ = [
+    "run",
+    "RECORD_KEYS",
+    "split_validation",
+    "build_dataset",
+    "model_source",
+    "last_validation",
+    "write_json",
+]
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +54,7 @@ def split_validation(viewpoints: np.ndarray, fraction: float, seed: int) -> np.n
     return np.isin(viewpoints, held)
 
 
-def _build(config, workdir: Path) -> dict:
+def build_dataset(config, workdir: Path) -> dict:
     from rp_jax.datasets import loading
 
     kwargs = {}
@@ -75,7 +83,7 @@ def _subset(columns: dict, mask: np.ndarray) -> dict:
     return {k: v[mask] for k, v in columns.items()}
 
 
-def _source(columns: dict):
+def model_source(columns: dict):
     from rp_jax.datasets.input_pipeline import ArraySource
 
     return ArraySource({k: columns[k] for k in _model_keys()}, _model_keys())
@@ -91,7 +99,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    data = _build(config, workdir)
+    data = build_dataset(config, workdir)
     timings["dataset_s"] = time.perf_counter() - t0
     if "train" not in data or "test" not in data:
         raise ValueError(f"{config.dataset}/{config.data_config} needs train and test splits, has {sorted(data)}")
@@ -105,8 +113,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
              len(val_cols["label"]), len(test["label"]))
 
     t0 = time.perf_counter()
-    val_source = _source(val_cols) if len(val_cols["label"]) else None
-    train.train_and_evaluate(config, workdir, _source(train_cols), val_source, schedule=schedule,
+    val_source = model_source(val_cols) if len(val_cols["label"]) else None
+    train.train_and_evaluate(config, workdir, model_source(train_cols), val_source, schedule=schedule,
                              progress=progress)
     timings["train_s"] = time.perf_counter() - t0
 
@@ -155,7 +163,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
                    for g, d in evaluation.per_group_errors(p, label, mask, test["category"],
                                                            categories.FIGURE9_GROUPS).items()}
             for name, p in baselines.items()}
-    val_metrics = _last_validation(workdir)
+    val_metrics = last_validation(workdir)
     if val_metrics:
         metrics["validation"] = val_metrics
 
@@ -165,7 +173,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
     timings["figures_s"] = time.perf_counter() - t0
     metrics["figures"] = [str(Path(f).name) for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
-    _write_json(workdir / "metrics.json", metrics)
+    write_json(workdir / "metrics.json", metrics)
     (workdir / "report.md").write_text(report_markdown(metrics, config))
     return metrics
 
@@ -182,9 +190,9 @@ def _image_loader(config):
         elif config.get("synthetic_root"):
             root = Path(config.synthetic_root)
         else:
-            b = loading.get_builder(config.dataset, config=config.data_config, data_dir=config.data_dir or None)
-            root = builder_lib.synthetic_root(b._data_dir_root, config.dataset, b.builder_config.size,
-                                              b.builder_config.seed)
+            cfg = next(c for c in builder_lib.builder_configs() if c.name == config.data_config)
+            data_dir = Path(config.data_dir) if config.data_dir else loading.default_data_dir()
+            root = builder_lib.synthetic_root(data_dir.absolute(), config.dataset, cfg.size, cfg.seed)
         captures = builder_lib.read_captures(config.dataset, root)
     except (OSError, ValueError) as e:  # figures then say "image not found"
         log.warning("cannot index the %s images for figures: %s", config.dataset, e)
@@ -199,7 +207,7 @@ def _image_loader(config):
     return load
 
 
-def _last_validation(workdir: Path) -> dict | None:
+def last_validation(workdir: Path) -> dict | None:
     path = workdir / "metrics.jsonl"
     if not path.exists():
         return None
@@ -221,7 +229,7 @@ def _finite(obj):
     return obj
 
 
-def _write_json(path: Path, payload) -> None:
+def write_json(path: Path, payload) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(_finite(payload), indent=2, allow_nan=False))
     os.replace(tmp, path)

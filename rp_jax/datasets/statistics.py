@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from rp_jax import categories
+from rp_jax import categories, evaluation
 
 __all__ = ["average_curve", "category_curves", "counts"]
 
@@ -32,11 +32,7 @@ def average_curve(label: np.ndarray, label_mask: np.ndarray) -> tuple[np.ndarray
     mask = np.asarray(label_mask, bool)
     if label.shape != mask.shape or label.ndim != 2:
         raise ValueError(f"label {label.shape} and label_mask {mask.shape} must be equal [N, T]")
-    count = mask.sum(axis=0).astype(np.int64)
-    total = np.where(mask, label, 0.0).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
-    return mean, count
+    return evaluation.average_curve(label, mask), mask.sum(axis=0).astype(np.int64)
 
 
 def category_curves(

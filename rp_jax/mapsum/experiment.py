@@ -66,7 +66,7 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax import categories
+from rp_jax import categories, experiment
 from rp_jax.mapsum.baselines import summarize
 from rp_jax.mapsum.colmap_io import (
     MapPoints,
@@ -472,11 +472,11 @@ def _rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
 
 def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress: bool = True):
     """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes), return it and counts."""
-    from rp_jax import experiment, predict, train
+    from rp_jax import predict, train
     from rp_jax import schedule as schedule_lib
 
     cfg = _rp_config(config)
-    data = experiment._build(cfg, rp_dir)
+    data = experiment.build_dataset(cfg, rp_dir)
     if "train" not in data or len(data["train"]["label"]) == 0:
         raise ValueError(f"{cfg.dataset}/{cfg.data_config}: no training records")
     cols = data["train"]
@@ -487,8 +487,8 @@ def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress
     train.train_and_evaluate(
         cfg,
         rp_dir,
-        experiment._source(train_cols),
-        experiment._source(val_cols) if val_mask.any() else None,
+        experiment.model_source(train_cols),
+        experiment.model_source(val_cols) if val_mask.any() else None,
         schedule=schedule,
         progress=progress,
     )
@@ -732,7 +732,7 @@ def run(
         "rp": {
             **rp_counts,
             "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
-            "validation": _last_validation(workdir / "rp"),
+            "validation": experiment.last_validation(workdir / "rp"),
         },
         "diagnostics": diagnostics,
         "dataset": {"rp": f"robotcar/{config.data_config}", "map": str(root)},
@@ -756,7 +756,7 @@ def run(
     timings["figures_s"] = time.perf_counter() - tic
     metrics["figures"] = [f.name for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
-    _write_json(workdir / "metrics.json", metrics)
+    experiment.write_json(workdir / "metrics.json", metrics)
     _write_text(workdir / "report.md", report_markdown(metrics, config))
     return metrics
 
@@ -861,27 +861,10 @@ def _save_npz(path: Path, **arrays) -> None:
     os.replace(tmp, path)
 
 
-def _last_validation(rp_dir: Path) -> dict | None:
-    path = rp_dir / "metrics.jsonl"
-    if not path.exists():
-        return None
-    lines = [json.loads(l) for l in path.read_text().splitlines() if l.strip()]
-    val = [l for l in lines if "val_mse" in l]
-    return (
-        {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]}
-        if val
-        else None
-    )
-
-
 def _write_text(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
-
-
-def _write_json(path: Path, payload) -> None:
-    _write_text(path, json.dumps(payload, indent=2, default=float))
 
 
 # ----------------------------------------------------------------------------- figure and report
