@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import hashlib
 import inspect
 import json
@@ -38,7 +39,12 @@ from tensorflow_datasets.core import utils as tfds_utils
 from rp_jax import categories
 from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
 from rp_jax.datasets import features as features_lib
-from rp_jax.groundtruth import GroundTruthConfig, label_viewpoint, label_viewpoints
+from rp_jax.groundtruth import (
+    GroundTruthConfig,
+    attach_patches,
+    label_viewpoint,
+    label_viewpoints,
+)
 from rp_jax.schedule import load_spec, preset
 from rp_jax.sources import cmu_seasons, robotcar, webcam_clipart
 from rp_jax.sources.capture import Capture
@@ -367,9 +373,14 @@ def select_records(records: Mapping[str, np.ndarray], per_image: int, seed: int 
 
 
 def label_viewpoint_examples(job: ViewpointJob) -> list[tuple[str, dict]]:
-    """``(key, example)`` of the interest points of one viewpoint (pure; Beam-mappable)."""
-    records = label_viewpoint(list(job.captures), **job.label_kwargs())
+    """``(key, example)`` of the interest points of one viewpoint (pure; Beam-mappable).
+
+    Patches are cut for the selected records only (the caches hold none).
+    """
+    kwargs = job.label_kwargs()
+    records = label_viewpoint(list(job.captures), **kwargs, with_patches=False)
     records = select_records(records, job.records_per_image, job.seed)
+    records = attach_patches(records, job.captures, kwargs["load_image"])
     return list(features_lib.records_to_examples(records))
 
 
@@ -626,6 +637,10 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
             return
         kwargs = jobs[0].label_kwargs()
         by_viewpoint = {j.viewpoint: list(j.captures) for j in jobs}
-        per_image, seed = jobs[0].records_per_image, jobs[0].seed
-        for _, records in label_viewpoints(by_viewpoint, workers=self._workers, **kwargs):
-            yield from features_lib.records_to_examples(select_records(records, per_image, seed))
+        select = functools.partial(
+            select_records, per_image=jobs[0].records_per_image, seed=jobs[0].seed
+        )
+        for _, records in label_viewpoints(
+            by_viewpoint, workers=self._workers, select=select, **kwargs
+        ):
+            yield from features_lib.records_to_examples(records)

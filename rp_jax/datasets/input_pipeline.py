@@ -13,7 +13,7 @@ uninterrupted training.
 
 from __future__ import annotations
 
-from typing import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import grain
 import numpy as np
@@ -39,7 +39,7 @@ class ArraySource:
         self._len = next(iter(lengths.values())) if lengths else 0
 
     @classmethod
-    def from_records(cls, source, keys: Sequence[str] = MODEL_KEYS) -> "ArraySource":
+    def from_records(cls, source, keys: Sequence[str] = MODEL_KEYS) -> ArraySource:
         """Materialise a record source (e.g. a TFDS data_source) into arrays."""
         n = len(source)
         getitems = getattr(source, "__getitems__", None)

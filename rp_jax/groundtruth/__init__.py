@@ -11,6 +11,7 @@ from rp_jax.groundtruth.labels import repeatability_labels
 from rp_jax.groundtruth.viewpoint import (
     RECORD_KEYS,
     TIME_FIELDS,
+    attach_patches,
     label_viewpoint,
     label_viewpoints,
     load_records,
@@ -20,6 +21,7 @@ __all__ = [
     "RECORD_KEYS",
     "TIME_FIELDS",
     "GroundTruthConfig",
+    "attach_patches",
     "label_viewpoint",
     "label_viewpoints",
     "load_records",

@@ -8,10 +8,17 @@ fundamental matrix), and turn the inliers into the repeatability vector y^j with
 Work is cached so that an interrupted build resumes where it stopped:
 
 * ``<cache_dir>/features/<detector-nK>/<viewpoint>/<image>.npz``: one per image (interest
-  points, descriptors, patches, categories); a re-run skips detection for these.
+  points, descriptors, categories); a re-run skips detection for these.
 * ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts and a
   fingerprint of the captures): the records of a finished viewpoint; a re-run with the same
   captures returns it without recomputing.
+
+Neither cache holds the 64x64x3 patches: at 12 KB per interest point they were 95 % of the
+bytes (a full synthetic CMU build cached ~60 GB). Patches are cut from the images when the
+records are returned (``attach_patches``), and a caller that keeps only some records (the
+dataset builders keep ``records_per_image``) asks for records without patches, selects,
+then cuts the patches of the kept rows only. Cutting is deterministic, so the records are
+identical to cutting at detection time.
 
 Every file is written atomically (temporary name, then ``os.replace``). The per-viewpoint
 function is pure given its inputs (callables must be picklable, e.g. module-level
@@ -28,10 +35,10 @@ The ``"fundamental"`` mode stops at the two-view check (no SfM), a faster approx
 from __future__ import annotations
 
 import concurrent.futures as cf
-import multiprocessing as mp
 import hashlib
 import json
 import logging
+import multiprocessing as mp
 import os
 import re
 import tempfile
@@ -50,6 +57,7 @@ from rp_jax.sources.capture import Capture
 __all__ = [
     "RECORD_KEYS",
     "TIME_FIELDS",
+    "attach_patches",
     "image_features",
     "label_viewpoint",
     "label_viewpoints",
@@ -135,6 +143,60 @@ def load_records(path: str | Path) -> dict[str, np.ndarray]:
 # ----------------------------------------------------------------------------- per image
 
 
+def _checked_image(capture: Capture, load_image: LoadImage) -> np.ndarray | None:
+    image = load_image(capture)
+    if image is None:
+        return None
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(
+            f"load_image({capture.image_path}) must return RGB uint8 HxWx3, "
+            f"got {image.dtype} {image.shape}"
+        )
+    return image
+
+
+def attach_patches(
+    records: Mapping[str, np.ndarray],
+    captures: Sequence[Capture],
+    load_image: LoadImage,
+) -> dict[str, np.ndarray]:
+    """``records`` with their ``patch`` column cut from the images (Sec. III-B, Fig. 5).
+
+    Each image is loaded once and the 64x64x3 patch of every row of that image is cut
+    around the row's ``xy`` (``patches.extract_patches``: the same rule as at detection).
+
+    Args:
+      records: column arrays with at least ``image_id`` and ``xy`` (any subset of a
+        viewpoint's rows, e.g. after ``select_records``).
+      captures: the captures the rows come from (matched by ``image_id``).
+      load_image: the loader the features were detected on.
+
+    Raises:
+      ValueError: a row's image is not among ``captures``, or is no longer readable (it
+        was when its features were detected).
+    """
+    out = dict(records)
+    xy = np.asarray(records["xy"], np.float32)
+    image_ids = np.asarray(records["image_id"]).astype(str)
+    patch = np.zeros((len(xy), patches.PATCH_SIZE, patches.PATCH_SIZE, 3), np.uint8)
+    by_id = {str(c.image_id): c for c in captures}
+    for image_id in np.unique(image_ids):
+        capture = by_id.get(image_id)
+        if capture is None:
+            raise ValueError(f"records of image {image_id!r}, which is not among the captures")
+        image = _checked_image(capture, load_image)
+        if image is None:
+            raise ValueError(
+                f"{capture.image_path}: unreadable now, but its interest points were detected "
+                "on it; restore the file or delete the ground-truth cache of its viewpoint"
+            )
+        rows = np.flatnonzero(image_ids == image_id)
+        patch[rows] = patches.extract_patches(image, xy[rows])
+    out["patch"] = patch
+    return out
+
+
 def _feature_path(cache_dir: Path, config: GroundTruthConfig, capture: Capture) -> Path:
     return (
         cache_dir
@@ -169,7 +231,7 @@ def image_features(
     cache_dir: str | Path | None = None,
     load_category: LoadCategory | None = None,
 ) -> dict[str, np.ndarray] | None:
-    """Interest points, descriptors, patches and categories of one image (cached).
+    """Interest points, descriptors and categories of one image (cached).
 
     Args:
       capture: the image.
@@ -179,14 +241,15 @@ def image_features(
       load_category: optional, returns a uint8 [H, W] category map (255 = unlabelled).
 
     Returns:
-      dict with ``xy`` [N,2] float32, ``descriptor`` [N,D] (raw dtype), ``patch``
-      [N,64,64,3] uint8, ``category`` [N] int32, ``image_size`` [2] int32 (W, H); or None
-      if the image is unreadable (never cached, so it is retried next time).
+      dict with ``xy`` [N,2] float32, ``descriptor`` [N,D] (raw dtype), ``category`` [N]
+      int32, ``image_size`` [2] int32 (W, H); or None if the image is unreadable (never
+      cached, so it is retried next time). Patches: ``attach_patches``.
     """
     path = _feature_path(Path(cache_dir), config, capture) if cache_dir is not None else None
     if path is not None and path.exists():
         try:
             cached = _load_npz(path)
+            cached.pop("patch", None)  # written by versions that cached patches
             if load_category is not None and not cached.pop("has_category_map", False):
                 # Cached without categories: read them now (no detection needed).
                 size = tuple(int(v) for v in cached["image_size"])
@@ -197,15 +260,9 @@ def image_features(
             logger.warning(
                 "re-detecting %s: unreadable feature cache %s (%s)", capture.image_path, path, err
             )
-    image = load_image(capture)
+    image = _checked_image(capture, load_image)
     if image is None:
         return None
-    image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-        raise ValueError(
-            f"load_image({capture.image_path}) must return RGB uint8 HxWx3, "
-            f"got {image.dtype} {image.shape}"
-        )
     h, w = image.shape[:2]
     feats = features_lib.detect_and_describe(
         image, detector=config.detector, max_keypoints=config.max_keypoints
@@ -214,7 +271,6 @@ def image_features(
     out = {
         "xy": feats.xy,
         "descriptor": feats.descriptor,
-        "patch": patches.extract_patches(image, feats.xy),
         "category": _categories_at(category_map, feats.xy, (w, h)),
         "image_size": np.array([w, h], np.int32),
     }
@@ -373,8 +429,8 @@ def _time_fields(capture: Capture) -> np.ndarray:
 
 
 def _empty_records(num_timestamps: int, desc_width: int) -> dict[str, np.ndarray]:
+    """No rows, every column but ``patch`` (``attach_patches`` adds it)."""
     return {
-        "patch": np.zeros((0, patches.PATCH_SIZE, patches.PATCH_SIZE, 3), np.uint8),
         "xy": np.zeros((0, 2), np.float32),
         "xy_normalized": np.zeros((0, 2), np.float32),
         "image_size": np.zeros((0, 2), np.int32),
@@ -437,6 +493,7 @@ def label_viewpoint(
     load_category: LoadCategory | None = None,
     progress: bool = False,
     matching_threads: int = 2,
+    with_patches: bool = True,
 ) -> dict[str, np.ndarray]:
     """Keypoint records with repeatability labels for one viewpoint (Sec. III-D).
 
@@ -454,6 +511,8 @@ def label_viewpoint(
       load_category: optional ``capture -> uint8 [H, W]`` category map (255 = unlabelled).
       progress: show tqdm bars over images and matching.
       matching_threads: threads for descriptor matching (does not change the result).
+      with_patches: cut the ``patch`` column from the images (one more read of each);
+        False leaves it out, e.g. to select records first and then ``attach_patches``.
 
     Returns:
       dict of arrays, one row per interest point of every readable image (``RECORD_KEYS``):
@@ -478,7 +537,9 @@ def label_viewpoint(
         if out_path.exists() and meta_path.exists():
             meta = json.loads(meta_path.read_text())
             if meta.get("fingerprint") == fingerprint:
-                return _load_npz(out_path)
+                records = _load_npz(out_path)
+                records.pop("patch", None)  # written by versions that cached patches
+                return attach_patches(records, captures, load_image) if with_patches else records
             logger.info("captures of viewpoint %s changed; relabelling", viewpoint)
 
     feats, readable = [], []
@@ -566,11 +627,11 @@ def label_viewpoint(
         }
         _atomic_savez(out_path, records)
         _atomic_write_text(out_path.with_suffix(".json"), json.dumps(meta, indent=1))
-    return records
+    return attach_patches(records, readable, load_image) if with_patches else records
 
 
 def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[str, np.ndarray]:
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in RECORD_KEYS}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in RECORD_KEYS if k != "patch"}
     for i, (c, f) in enumerate(zip(readable, feats)):
         n = len(f["xy"])
         if n == 0:
@@ -578,7 +639,6 @@ def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[st
         label, mask = labels_lib.repeatability_labels(inliers[i], slots, i, num_timestamps)
         size = f["image_size"].astype(np.int32)
         xy = f["xy"].astype(np.float32)
-        parts["patch"].append(f["patch"])
         parts["xy"].append(xy)
         parts["xy_normalized"].append(
             np.clip(xy / size.astype(np.float32)[None, :], 0.0, 1.0).astype(np.float32)
@@ -602,10 +662,13 @@ def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[st
 # ----------------------------------------------------------------------------- many viewpoints
 
 
-def _label_one(viewpoint_id, captures, kwargs, to_disk: bool):
-    records = label_viewpoint(captures, **kwargs)
-    if to_disk:
-        return viewpoint_id, None  # the parent reads the cached file (no big pickle)
+def _label_one(viewpoint_id, captures, kwargs, select, with_patches: bool):
+    """Label, select, then cut the kept rows' patches (one worker's whole job)."""
+    records = label_viewpoint(captures, **kwargs, with_patches=False)
+    if select is not None:
+        records = select(records)
+    if with_patches:
+        records = attach_patches(records, captures, kwargs["load_image"])
     return viewpoint_id, records
 
 
@@ -619,6 +682,8 @@ def label_viewpoints(
     camera_of: CameraOf | None = None,
     load_category: LoadCategory | None = None,
     workers: int = 2,
+    select: Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]] | None = None,
+    with_patches: bool = True,
 ) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
     """Label many viewpoints, in parallel processes, yielding as each finishes.
 
@@ -627,6 +692,10 @@ def label_viewpoints(
       load_image, num_timestamps, config, cache_dir, camera_of, load_category: as in
         ``label_viewpoint``; the callables must be picklable when ``workers > 1``.
       workers: processes (1: run in this process).
+      select: optional ``records -> records`` keeping some rows (e.g. the builders'
+        ``select_records``), applied in the worker before patches are cut, so only the
+        kept rows' patches are cut and sent back; picklable when ``workers > 1``.
+      with_patches: cut the ``patch`` column (see ``label_viewpoint``).
 
     Yields:
       ``(viewpoint_id, records)`` in completion order.
@@ -645,24 +714,20 @@ def label_viewpoints(
     try:
         if workers <= 1 or len(viewpoints) <= 1:
             for vp, caps in viewpoints.items():
-                yield vp, label_viewpoint(caps, **kwargs)
+                yield _label_one(vp, list(caps), kwargs, select, with_patches)
                 bar.update(1)
             return
-        to_disk = cache_dir is not None
         # Cores are shared by the processes: one matching thread each.
         kwargs["matching_threads"] = 1
         # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
         # running already, and forking a multithreaded process can deadlock.
         with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
             futures = {
-                pool.submit(_label_one, vp, list(caps), kwargs, to_disk): vp
+                pool.submit(_label_one, vp, list(caps), kwargs, select, with_patches): vp
                 for vp, caps in viewpoints.items()
             }
             for fut in cf.as_completed(futures):
-                vp, records = fut.result()
-                if records is None:  # cache hit: a read, not a recomputation
-                    records = label_viewpoint(viewpoints[vp], **kwargs)
+                yield fut.result()
                 bar.update(1)
-                yield vp, records
     finally:
         bar.close()
