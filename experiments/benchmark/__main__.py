@@ -1,10 +1,16 @@
-"""Command line of the benchmark (the predictor of Sec. III-B/C and ground truth of III-D).
+"""Command line of the benchmark (the predictor of Sec. III-B/C, ground truth of III-D, map
+summarization of V-A and localization of V-B).
 
     python -m experiments.benchmark [STAGE ...] [--out DIR] [--size tiny|full] [--repeats N]
 
-Stages: train, predict, match, groundtruth (default: all). Writes ``DIR/benchmark.json`` and
-``DIR/benchmark.md``; stages not run this time are kept from an earlier report of the same
-size in ``DIR``.
+Stages: train, predict, match, groundtruth, summarize, localize (default: all).
+
+* summarize: seconds and peak memory to summarize synthetic maps of 10^4 .. 10^7 points for
+  one timestamp (repeatability cached per point), ours vs the K-cover baseline;
+* localize: per-query ms of retrieval, 2D-3D matching and PnP-RANSAC, ours vs OpenCV.
+
+Writes ``DIR/benchmark.json`` and ``DIR/benchmark.md``; stages not run this time are kept
+from an earlier report of the same size in ``DIR``.
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@
 ``benchmark.json`` maps each stage to ``{"ours": {...}, "peer": {...}, "ratio": ..., "unit":
 ...}``; ``ratio`` is the median over rounds of ours/peer speed measured back to back (None
 where a stage has no peer). ``benchmark.md`` is the same as tables: median, min, max per
-variant and its ratio to the peer of the same run, pair by pair.
+variant and its ratio to the peer of the same run, pair by pair. Stages measured in time
+(``summarize`` in s, ``localize`` in ms/query) keep ``ratio`` a speed ratio: peer time / our
+time.
 """
 
 from __future__ import annotations
@@ -155,6 +157,134 @@ def _groundtruth_table(entry: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _summarize_table(entry: dict[str, Any], predict: dict[str, Any] | None = None) -> list[str]:
+    """Section of the ``summarize`` stage (Sec. V-A): one ours / K-cover row pair per size."""
+    lines = [
+        "## summarize",
+        "",
+        (
+            f"Seconds to summarize a synthetic street map for one query timestamp: pruning ratio "
+            f"{entry['pruning_ratio']}, ground-plane grid of {entry['cell_size_m']:g} m cells, "
+            f"T = {entry['num_timestamps']} timestamps; ours = `{entry['ours']['variant']}`, "
+            f"peer = `{entry['peer']['variant']}` (same map, partition and points per part). The "
+            "per-point repeatability [P, T] is cached (predicted once per map, all T timestamps "
+            "in one forward pass): the times exclude the network. Each size runs in a fresh "
+            f"process; ours and K-cover alternate over {entry['repeats']} rounds (each round a "
+            "random query timestamp). Peak RSS: the process's high-water mark during the run "
+            f"({entry['memory_method']}); extra: above the resident map. Ratio = median over rounds "
+            "of K-cover seconds / our seconds."
+        ),
+        "",
+        (
+            "| points | method | median s | min s | max s | partition + select s | "
+            "peak RSS MB | extra MB | ratio (K-cover s / ours s) |"
+        ),
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for n, ours in entry["ours"]["per_num_points"].items():
+        peer = entry["peer"]["per_num_points"].get(n, {})
+        ratio = entry["ratio_per_num_points"].get(n)
+        for name, v in (("ours", ours), ("K-cover", peer)):
+            label = f"{int(n):,}"
+            if "seconds" not in v:
+                lines.append(f"| {label} | {name} | {v.get('status', 'not run')} | | | | | | |")
+                continue
+            sec = v["seconds"]
+            note = f" ({v['note']})" if v.get("note") else ""
+            lines.append(
+                f"| {label} | {name}{note} | {_fmt(sec['median'])} | {_fmt(sec['min'])} | "
+                f"{_fmt(sec['max'])} | {_fmt(v['partition_seconds'])} + "
+                f"{_fmt(v['select_seconds'])} | {v['peak_mb']:,.0f} | {v['extra_mb']:,.0f} | "
+                f"{_fmt(ratio) if name == 'ours' else '1'} |"
+            )
+    lines += [
+        "",
+        "| points | database images | observations | parts | map build s | map arrays MB |",
+        "|---|---|---|---|---|---|",
+    ]
+    for n, m in entry["maps"].items():
+        lines.append(
+            f"| {int(n):,} | {m.get('images', 0):,} | {m.get('observations', 0):,} | "
+            f"{m.get('parts', 0):,} | {_fmt(m.get('build_s'))} | {_fmt(m.get('array_mb'))} |"
+        )
+    lines.append("")
+    under = entry.get("million_points_under_1s")
+    million = entry["ours"]["per_num_points"].get(str(10**6))
+    if under is not None and million:
+        lines.append(
+            f"Goal, a 10^6-point map summarized for one timestamp in under a second: "
+            f"{'met' if under else 'not met'} (median {_fmt(million['seconds']['median'])} s, "
+            "partition included)."
+        )
+    big = max(entry["maps"], key=int, default=None)
+    if predict and predict.get("ours", {}).get("median") and big:
+        speed = predict["ours"]["median"]
+        obs = entry["maps"][big]["observations"]
+        lines.append(
+            f"Not included, the cache itself: at the predict stage's {_fmt(speed)} observations/s "
+            f"(`{predict['ours']['variant']}`, this report), predicting the {int(big):,}-point "
+            f"map ({obs:,} observations) costs about {_fmt(obs / speed)} s once per map "
+            f"({_fmt(1e6 * obs / speed / int(big))} us per point), reused for every timestamp."
+        )
+    return lines + [""]
+
+
+def _localize_table(entry: dict[str, Any]) -> list[str]:
+    """Section of the ``localize`` stage (Sec. V-B): per-query ms step by step."""
+    eq = entry["equality"]
+    p = entry["params"]
+    lines = [
+        "## localize",
+        "",
+        (
+            f"{entry['unit']} on a synthetic street of {entry['num_points']:,} points, "
+            f"{entry['num_images']} database images and {entry['num_queries']} queries (median "
+            f"{entry['keypoints_per_query']:,} keypoints, {entry['candidates_per_query']:,} "
+            f"candidate points after retrieving {p['num_retrieved']} images by a "
+            f"{entry['global_descriptor_dim']}-d VLAD); ratio test {p['ratio']}, RANSAC "
+            f"{p['reprojection_error']:g} px, {p['ransac_iterations']} iterations; "
+            f"{entry['repeats']} rounds, ours and peer alternating; ratio = median over rounds of "
+            "peer ms / our ms."
+        ),
+        "",
+        (
+            f"Checked first: 2D-3D matches agree {100 * eq['matches_agree_fraction']:.1f} %, both "
+            f"localize {eq['localized_ours']}/{eq['queries']} queries, poses differ by at most "
+            f"{eq['pose_max_position_diff_m']:.2g} m / {eq['pose_max_rotation_diff_deg']:.2g} deg; "
+            f"ours is within {eq['ours_max_error_to_truth'][0]:.2g} m / "
+            f"{eq['ours_max_error_to_truth'][1]:.2g} deg of the truth."
+        ),
+        "",
+        "| step | ours median | ours min | ours max | peer median | peer min | peer max | ratio |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    names = {
+        "retrieval": "retrieval + candidates",
+        "matching": "2D-3D matching",
+        "pnp": "PnP-RANSAC",
+    }
+    for k, label in names.items():
+        o, q = entry["ours"]["steps"][k], entry["peer"]["steps"][k]
+        lines.append(
+            f"| {label} | {_fmt(o['median'])} | {_fmt(o['min'])} | {_fmt(o['max'])} | "
+            f"{_fmt(q['median'])} | {_fmt(q['min'])} | {_fmt(q['max'])} | "
+            f"{_fmt(entry['step_ratios'][k])} |"
+        )
+    o, q = entry["ours"], entry["peer"]
+    lines += [
+        (
+            f"| **whole query** | {_fmt(o['median'])} | {_fmt(o['min'])} | {_fmt(o['max'])} | "
+            f"{_fmt(q['median'])} | {_fmt(q['min'])} | {_fmt(q['max'])} | {_fmt(entry['ratio'])} |"
+        ),
+        "",
+        f"- ours: `{o['variant']}`: {o['description']} (whole query timed through `localize`).",
+        f"- peer: `{q['variant']}`: {q['description']}.",
+        f"- {entry['pnp_note']}",
+        "",
+    ]
+    return lines
+
+
 def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
     """The report as Markdown tables, one section per stage."""
     lines = ["# rp_jax benchmark", ""]
@@ -164,14 +294,23 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
             "|---|---|---|---|---|---|---|",
         ]
         for stage, e in results.items():
+            unit = e["unit"]
+            if e.get("headline_points"):
+                unit += f" ({e['headline_points']:,} points)"
             if e.get("peer") is None:
+                per_n = (e.get("ours") or {}).get("per_num_images") or {}
+                largest = max(per_n, key=int, default=None)
+                median = _fmt(per_n[largest]["seconds"]["median"]) if largest else "-"
+                unit += f" ({largest} images)" if largest else ""
                 lines.append(
-                    f"| {stage} | {e['unit']} | {(e.get('ours') or {}).get('variant', '-')} | - | - | - | - |"
+                    f"| {stage} | {unit} | {(e.get('ours') or {}).get('variant', '-')} | - | "
+                    f"{median} | - | - |"
                 )
                 continue
             lines.append(
-                f"| {stage} | {e['unit']} | `{e['ours']['variant']}` | `{e['peer']['variant']}` | "
-                f"{_fmt(e['ours']['median'])} | {_fmt(e['peer']['median'])} | {_fmt(e['ratio'])} |"
+                f"| {stage} | {unit} | `{e['ours']['variant']}` | `{e['peer']['variant']}` | "
+                f"{_fmt(e['ours'].get('median'))} | {_fmt(e['peer'].get('median'))} | "
+                f"{_fmt(e['ratio'])} |"
             )
         lines.append("")
     loads = {
@@ -196,6 +335,10 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
             lines += _match_table(e)
         elif stage == "groundtruth":
             lines += _groundtruth_table(e)
+        elif stage == "summarize":
+            lines += _summarize_table(e, results.get("predict"))
+        elif stage == "localize":
+            lines += _localize_table(e)
     return "\n".join(lines)
 
 

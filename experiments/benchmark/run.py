@@ -1,7 +1,8 @@
 """Run benchmark stages and write the report (the library behind ``__main__``).
 
 ``run_benchmark(stages, out_dir, ...)`` is what the command line calls; notebooks and tests
-call it too. See ``stages.py`` for what each stage measures and how.
+call it too. See ``stages.py`` (predictor, ground truth) and ``mapsum_stages.py`` (map
+summarization and localization, Sec. V) for what each stage measures and how.
 """
 
 from __future__ import annotations
@@ -10,12 +11,12 @@ import datetime as dt
 import os
 from pathlib import Path
 
-from experiments.benchmark import report
+from experiments.benchmark import mapsum_stages, report
 from experiments.benchmark import stages as stages_lib
 
 __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 
-ALL_STAGES = ("train", "predict", "match", "groundtruth")
+ALL_STAGES = ("train", "predict", "match", "groundtruth", "summarize", "localize")
 NOTES = [
     (
         "Each JAX configuration and the PyTorch peer run in their own worker process, started and "
@@ -23,7 +24,10 @@ NOTES = [
         "from other users of this shared machine falls on all of them alike."
     ),
     "Ratios are medians over rounds of (variant speed / peer speed in the same round).",
-    "Not yet in this harness: map summarization (rp_jax.mapsum summarize / K-cover) stages.",
+    (
+        "Stages measured in time (summarize: s, localize: ms/query) report the same speed "
+        "ratio, i.e. peer time / our time: above 1, ours is faster."
+    ),
 ]
 
 
@@ -78,6 +82,10 @@ def run_benchmark(
             entry = stages_lib.run_model_stage(stage, size, repeats, variants, progress=progress)
         elif stage == "match":
             entry = stages_lib.run_match_stage(size, repeats, progress=progress)
+        elif stage == "summarize":
+            entry = mapsum_stages.run_summarize_stage(size, repeats, progress=progress)
+        elif stage == "localize":
+            entry = mapsum_stages.run_localize_stage(size, repeats, progress=progress)
         else:
             entry = stages_lib.run_groundtruth_stage(size, repeats, progress=progress)
         # The 1-minute load average around the stage: how shared the machine was.

@@ -70,6 +70,20 @@ SIZES: dict[str, dict[str, Any]] = {
         "gt_images": (3, 4, 6),
         "gt_image_size": (200, 150),
         "gt_keypoints": 150,
+        # Map summarization (Sec. V-A): map sizes, pruned fraction, grid cell, T.
+        "sum_points": (1_000, 10_000),
+        "sum_headline_points": 10_000,
+        "sum_ratio": 0.5,
+        "sum_cell_size_m": 10.0,
+        "sum_timestamps": 24,
+        "kcover_budget_s": 60.0,
+        # Localization (Sec. V-B).
+        "loc_points": 1_500,
+        "loc_images": 8,
+        "loc_street_m": 36.0,
+        "loc_queries": 3,
+        "loc_words": 16,
+        "loc_retrieved": 3,
     },
     "full": {
         # The project's defaults: batch 256 for training, 512 for prediction.
@@ -85,6 +99,20 @@ SIZES: dict[str, dict[str, Any]] = {
         "gt_images": (21, 42, 84),
         "gt_image_size": (640, 480),
         "gt_keypoints": 1000,
+        # Maps of 10^4 .. 10^7 points; the goal: 10^6 points in under a second.
+        "sum_points": (10_000, 100_000, 1_000_000, 10_000_000),
+        "sum_headline_points": 1_000_000,
+        "sum_ratio": 0.5,
+        "sum_cell_size_m": 10.0,  # experiments/map_summarization's config.map.cell_size_m
+        "sum_timestamps": 24,  # hourly (Sec. V: T = 24 hours/day)
+        "kcover_budget_s": 60.0,  # skip K-cover at a size once the previous took longer
+        # A 200 m street, a database image every 5 m, ~3,000 keypoints per query.
+        "loc_points": 20_000,
+        "loc_images": 40,
+        "loc_street_m": 200.0,
+        "loc_queries": 20,
+        "loc_words": 64,
+        "loc_retrieved": 5,  # experiments/map_summarization's config.map.num_retrieved
     },
 }
 

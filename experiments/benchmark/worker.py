@@ -14,6 +14,13 @@ Ground truth::
 
 labels one synthetic viewpoint and prints its time and peak memory, then exits.
 
+Map summarization (Sec. V-A)::
+
+    python -m experiments.benchmark.worker summarize NUM_POINTS SIZE REPEATS KCOVER
+
+builds a synthetic map of NUM_POINTS points, then prints one line per timed summary (ours,
+and K-cover when KCOVER is 1, alternating round by round) as it finishes, then exits.
+
 Errors are reported as ``@@BENCH {"error": "..."}`` and a non-zero exit.
 """
 
@@ -32,7 +39,27 @@ def _send(payload: dict) -> None:
     sys.stdout.flush()
 
 
+def _summarize(argv: list[str]) -> int:
+    """``summarize NUM_POINTS SIZE REPEATS KCOVER``: stream the measurements of one map size."""
+    if len(argv) != 4 or argv[3] not in ("0", "1"):
+        sys.stderr.write(__doc__)
+        return 2
+    try:
+        from experiments.benchmark import mapsum_stages, stages
+
+        size = stages.SIZES[argv[1]]
+        for msg in mapsum_stages.summarize_worker(int(argv[0]), size, int(argv[2]), argv[3] == "1"):
+            _send(msg)
+    except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
+        traceback.print_exc()
+        _send({"error": f"{type(e).__name__}: {e}"})
+        return 1
+    return 0
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["summarize"]:
+        return _summarize(argv[1:])
     if len(argv) != 3:
         sys.stderr.write(__doc__)
         return 2

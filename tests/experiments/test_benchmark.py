@@ -171,3 +171,134 @@ def test_rerun_of_one_stage_keeps_the_others(tiny_report):
     assert list(again) == list(results)
     assert again["train"] == results["train"]
     assert len(again["match"]["ours"]["samples"]) == 1
+
+
+def test_synthetic_street_map_is_a_valid_map_for_both_methods():
+    from experiments.benchmark import mapsum_stages
+    from rp_jax.mapsum import kcover_keep, keep_count, partition, repeatability_keep
+
+    mp, rep = mapsum_stages.synthetic_street_map(3000, num_timestamps=6, seed=3)
+    assert mp.num_points == 3000 and rep.shape == (3000, 6) and rep.dtype == np.float32
+    assert 0 <= rep.min() and rep.max() <= 1
+    lengths = mp.track_length
+    assert lengths.min() >= 2 and lengths.max() <= 5
+    # Each track is distinct consecutive database images (ids 1..n_images).
+    for i in (0, 1234, 2999):
+        images, _ = mp.track(i)
+        assert np.all(np.diff(images) == 1) and images.min() >= 1
+        assert images.max() <= len(mp.image_names)
+    parts = partition(mp.xyz, "grid", cell_size=10.0)
+    ours = repeatability_keep(mp, 0.5, parts, repeatability=rep, timestamp=2)
+    kcover = kcover_keep(mp, 0.5, parts)
+    for p in range(parts.max() + 1):
+        n = keep_count((parts == p).sum(), 0.5)
+        assert ours[parts == p].sum() == kcover[parts == p].sum() == n
+
+
+def test_memory_probe_sees_an_allocation_after_a_larger_one():
+    from experiments.benchmark import mapsum_stages
+
+    big = np.ones(64 * 2**20 // 8)  # 64 MB peak before the probe
+    del big
+    with mapsum_stages.memory_probe() as mem:
+        x = np.ones(16 * 2**20 // 8)
+        x[::512] = 2.0
+    del x
+    assert mem.peak_mb > 0
+    if mem.method.startswith("VmHWM"):
+        assert 8 <= mem.extra_mb <= 48, mem.extra_mb  # its own 16 MB, not the earlier 64 MB
+
+
+@pytest.fixture(scope="module")
+def tiny_sum_loc_report(tmp_path_factory):
+    """One tiny run of the map summarization and localization stages (Sec. V)."""
+    out = tmp_path_factory.mktemp("bench_sumloc")
+    js, md = run_benchmark(["summarize", "localize"], out, size="tiny", repeats=2, progress=False)
+    return json.loads(js.read_text()), md.read_text()
+
+
+@pytest.mark.slow
+def test_summarize_report_shape(tiny_sum_loc_report):
+    results, md = tiny_sum_loc_report
+    assert list(results) == ["summarize", "localize"]
+    e = results["summarize"]
+    assert e["unit"] == "s" and e["prediction_cached"] is True and e["ratio"] > 0
+    sizes = [str(n) for n in stages.SIZES["tiny"]["sum_points"]]
+    assert list(e["ours"]["per_num_points"]) == sizes == list(e["peer"]["per_num_points"])
+    assert e["headline_points"] == stages.SIZES["tiny"]["sum_headline_points"]
+    for side in ("ours", "peer"):
+        assert e[side]["min"] <= e[side]["median"] <= e[side]["max"]
+        assert len(e[side]["samples"]) == 2
+        for v in e[side]["per_num_points"].values():
+            assert 0 < v["seconds"]["min"] <= v["seconds"]["median"] <= v["seconds"]["max"]
+            assert v["peak_mb"] > 0 and v["extra_mb"] >= 0
+            assert v["partition_seconds"] > 0 and v["select_seconds"] > 0
+    # Equal size: both methods keep the same number of points.
+    for n in sizes:
+        assert e["ours"]["per_num_points"][n]["kept"] == e["peer"]["per_num_points"][n]["kept"]
+        assert e["ratio_per_num_points"][n] > 0
+        assert e["maps"][n]["points"] == int(n) and e["maps"][n]["observations"] > 2 * int(n)
+    # The headline ratio is the pairwise median of the headline size's rounds.
+    assert e["ratio"] == pytest.approx(
+        stages.pairwise_ratio(
+            [1 / s for s in e["ours"]["samples"]], [1 / s for s in e["peer"]["samples"]]
+        )
+    )
+    assert "## summarize" in md and "| points | method | median s" in md
+    assert "| summarize | s (10,000 points) |" in md
+
+
+@pytest.mark.slow
+def test_localize_report_shape(tiny_sum_loc_report):
+    results, md = tiny_sum_loc_report
+    e = results["localize"]
+    assert e["unit"] == "ms/query" and e["ratio"] > 0
+    for side in ("ours", "peer"):
+        assert 0 < e[side]["min"] <= e[side]["median"] <= e[side]["max"]
+        assert len(e[side]["samples"]) == 2
+        assert set(e[side]["steps"]) == {"retrieval", "matching", "pnp"}
+        for s in e[side]["steps"].values():
+            assert 0 < s["min"] <= s["median"] <= s["max"]
+    assert set(e["step_ratios"]) == {"retrieval", "matching", "pnp"}
+    assert all(r > 0 for r in e["step_ratios"].values())
+    eq = e["equality"]
+    assert eq["localized_ours"] == eq["localized_peer"] == eq["queries"] == e["num_queries"]
+    assert eq["matches_agree_fraction"] >= 0.99
+    assert eq["pose_max_position_diff_m"] < 0.05 and eq["pose_max_rotation_diff_deg"] < 0.5
+    assert "## localize" in md and "| **whole query** |" in md and "PnP-RANSAC" in md
+
+
+def test_summarize_skips_kcover_past_its_budget(monkeypatch):
+    """K-cover is not run at a size once the previous size took longer than the budget; the
+    report says so with a projected time and never waits for it."""
+    from experiments.benchmark import mapsum_stages
+
+    size = {**stages.SIZES["tiny"], "sum_points": (100, 1000, 10_000), "kcover_budget_s": 1.0}
+    monkeypatch.setitem(stages.SIZES, "fake", size)
+    calls = []
+
+    def fake_worker(n, size_name, repeats, run_kcover, timeout_s):
+        calls.append((n, run_kcover))
+        ours = {"method": "ours", "seconds": 0.01, "partition_s": 0.005, "select_s": 0.005}
+        kc = {**ours, "method": "kcover", "seconds": 2.0}
+        common = {"kept": n // 2, "peak_mb": 100.0, "extra_mb": 1.0, "memory_method": "test"}
+        runs = [{"measure": {**ours, **common}}]
+        if run_kcover:
+            runs.append({"measure": {**kc, **common}})
+        return [{"map": {"points": n, "observations": 3 * n}}] + runs, None
+
+    monkeypatch.setattr(mapsum_stages, "_run_summarize_worker", fake_worker)
+    e = mapsum_stages.run_summarize_stage("fake", 1, progress=False)
+    assert calls == [(100, True), (1000, False), (10_000, False)]
+    skipped = e["peer"]["per_num_points"]["1000"]
+    assert skipped["projected_seconds"] == pytest.approx(20.0)
+    assert skipped["status"].startswith("not run: projected 20 s (at 100 points it took 2 s")
+    chained = e["peer"]["per_num_points"]["10000"]
+    assert chained["projected_seconds"] == pytest.approx(200.0)
+    assert "was projected at 20 s" in chained["status"]
+    assert e["ratio_per_num_points"] == {"100": pytest.approx(200.0), "1000": None, "10000": None}
+    assert e["headline_points"] == 100  # the largest size both ran at
+    from experiments.benchmark import report
+
+    md = report.markdown({"summarize": {**e, "size": "fake"}})
+    assert "not run: projected 20 s" in md
