@@ -197,6 +197,23 @@ def attach_patches(
     return out
 
 
+class _StaleCache(Exception):
+    """A cached result of an image file that has changed since."""
+
+
+def _file_stamp(capture: Capture) -> np.ndarray:
+    """(size, mtime in ns) of the capture's image file, or (-1, -1) if there is no file.
+
+    A cached result is used only while its image file is unchanged: re-rendering the
+    synthetic world or replacing a download's images invalidates it.
+    """
+    try:
+        st = os.stat(capture.image_path)
+    except (OSError, TypeError):
+        return np.array([-1, -1], np.int64)
+    return np.array([st.st_size, st.st_mtime_ns], np.int64)
+
+
 def _feature_path(cache_dir: Path, config: GroundTruthConfig, capture: Capture) -> Path:
     return (
         cache_dir
@@ -250,12 +267,17 @@ def image_features(
         try:
             cached = _load_npz(path)
             cached.pop("patch", None)  # written by versions that cached patches
+            stamp = cached.pop("file_stamp", None)
+            if stamp is None or not np.array_equal(stamp, _file_stamp(capture)):
+                raise _StaleCache
             if load_category is not None and not cached.pop("has_category_map", False):
                 # Cached without categories: read them now (no detection needed).
                 size = tuple(int(v) for v in cached["image_size"])
                 cached["category"] = _categories_at(load_category(capture), cached["xy"], size)
             cached.pop("has_category_map", None)
             return cached
+        except _StaleCache:
+            logger.info("re-detecting %s: the image changed since it was cached", capture.image_path)
         except (OSError, ValueError, zipfile.BadZipFile) as err:  # e.g. a foreign file
             logger.warning(
                 "re-detecting %s: unreadable feature cache %s (%s)", capture.image_path, path, err
@@ -275,7 +297,14 @@ def image_features(
         "image_size": np.array([w, h], np.int32),
     }
     if path is not None:
-        _atomic_savez(path, {**out, "has_category_map": np.array(category_map is not None)})
+        _atomic_savez(
+            path,
+            {
+                **out,
+                "has_category_map": np.array(category_map is not None),
+                "file_stamp": _file_stamp(capture),
+            },
+        )
     return out
 
 
@@ -448,13 +477,15 @@ def _empty_records(num_timestamps: int, desc_width: int) -> dict[str, np.ndarray
 
 
 def _fingerprint(captures: Sequence[Capture], with_categories: bool) -> str:
-    """Hash of what the records depend on besides the config: ids, slots, times, poses, K.
+    """Hash of what the records depend on besides the config: ids, slots, times, poses, K
+    and each image file's size and modification time.
 
     (What the callables return is not hashed: a changed ``camera_of`` needs a new cache.)
     """
     h = hashlib.sha1(b"categories" if with_categories else b"")
     for c in captures:
         h.update(json.dumps([c.image_id, int(c.cycle), int(c.slot), c.time.isoformat()]).encode())
+        h.update(_file_stamp(c).tobytes())
         h.update(np.asarray(c.camera.K, np.float64).tobytes())
         if c.has_pose:
             h.update(c.R.tobytes() + c.t.tobytes())

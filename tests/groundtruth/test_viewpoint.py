@@ -241,3 +241,26 @@ def test_orb_viewpoint_and_meta_counts(tmp_path):
     assert meta["num_images"] == 7 and meta["num_unreadable"] == 1
     assert meta["unreadable"] == ["c1s1b"]
     assert meta["num_interest_points"] == len(rec["xy"])
+
+
+def test_caches_are_redone_when_an_image_file_changes(tmp_path):
+    caps = _static_viewpoint("vpfile", seed=9)[:3]
+    on_disk = _scenes.to_disk(caps, tmp_path / "images")
+    kw = {
+        "load_image": _scenes.load_from_disk,
+        "num_timestamps": T,
+        "config": STATIC,
+        "cache_dir": tmp_path / "cache",
+        "with_patches": False,
+    }
+    first = label_viewpoint(on_disk, **kw)
+    # Replace one image by another (same name): its features and the viewpoint's labels
+    # must not be served from the cache.
+    changed = on_disk[0].image_path
+    other = _scenes.load_from_disk(on_disk[1])[::-1].copy()
+    import cv2
+
+    cv2.imwrite(str(changed), cv2.cvtColor(other, cv2.COLOR_RGB2BGR))
+    second = label_viewpoint(on_disk, **kw)
+    rows = second["image_id"] == on_disk[0].image_id
+    assert not np.array_equal(second["xy"][rows], first["xy"][first["image_id"] == on_disk[0].image_id])

@@ -18,8 +18,10 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "robotcar"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.0.0")
+    VERSION = tfds.core.Version("1.1.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.1.0": "Synthetic world: snow lies on facade ledges on snowy days. Ground-truth "
+        "caches hold no patches and follow changes of the image files.",
         "1.0.0": "Initial release: SIFT interest points on demosaiced images, pose-based "
         "verification, y^j over the 9 hourly timestamps.",
     }

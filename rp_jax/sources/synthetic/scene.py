@@ -418,7 +418,8 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
             facade_min[side] = min(facade_min[side], setback)
             fkey, skey, rkey = f"facade:{bid}", f"side:{bid}", f"roof:{bid}"
             tc.register(fkey, tx.facade_texture, dict(seed=bseed, width_m=w, height_m=h, floor_h=floor_h, style=style,
-                                                      shopfront=urban and rng.random() < 0.7))
+                                                      shopfront=urban and rng.random() < 0.7),
+                        depends=("snow", "snow_pattern"))
             tc.register(skey, tx.side_wall_texture, dict(seed=bseed + 1, width_m=depth, height_m=h, style=style))
             tc.register(rkey, tx.roof_texture, dict(seed=bseed + 2, width_m=w, depth_m=depth),
                         depends=("snow", "snow_pattern"))
@@ -436,7 +437,7 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
         fkey = f"facade:{bid}"
         tc.register(fkey, tx.facade_texture, dict(seed=int(rng.integers(1 << 30)), width_m=2 * outer,
                                                   height_m=hi[2], floor_h=3.3, style="brick", shopfront=False,
-                                                  texel=0.05))
+                                                  texel=0.05), depends=("snow", "snow_pattern"))
         box_quads(qb, lo, hi, {front: fkey}, categories.BUILDING, Material.WALL, receivers={front: new_plane()},
                   owner=bid, faces=(front,))
         qb.rows[-1] = qb.rows[-1][:5] + (Material.FACADE,) + qb.rows[-1][6:]

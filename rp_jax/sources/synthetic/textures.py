@@ -239,7 +239,8 @@ def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
 
 
 def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, style: str,
-                   shopfront: bool, texel: float = TEXEL_M, snow: int = 0) -> np.ndarray:
+                   shopfront: bool, texel: float = TEXEL_M, snow: int = 0,
+                   snow_pattern: int = 0) -> np.ndarray:
     """Street-facing facade of one building.
 
     Args:
@@ -250,13 +251,16 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
       shopfront: a shop window with a sign on the ground floor (urban) instead of a door
         and windows (residential).
       texel: metres per texel.
-      snow: unused (facades are vertical); kept so that every texture shares one signature.
+      snow: snow level 0..4: snow lies on the horizontal ledges (window sills and lintels,
+        string courses, the cornice, sign and air-conditioner tops), ``_ledge_snow``.
+      snow_pattern: id of the snow pack (``conditions.snow_state``): which stretches of the
+        ledges hold snow.
 
     Returns:
       RGBA uint8 whose aux channel holds 128 + a lighting rank (0..126) on glass, 0 on walls.
     """
-    del snow
     rng = np.random.default_rng(seed)
+    ledges: list[tuple[int, int, int]] = []  # (x0, x1, y): horizontal ledges, top at row y
     W, H = pad16(width_m / texel), pad16(height_m / texel)
     ppm = W / width_m
     rgb = _wall(style, H, W, rng, 1.0 / ppm)
@@ -291,6 +295,7 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
         sign_w = int(rng.uniform(0.5, 0.9) * (sx1 - sx0))
         sx = sx0 + int(rng.uniform(0, 1) * (sx1 - sx0 - sign_w))
         rgb[y_top + int(0.15 * ppm):y_top + int(0.15 * ppm) + sign_h, sx:sx + sign_w] = sign_texture(rng, sign_w, sign_h)
+        ledges.append((sx, sx + sign_w, y_top + int(0.15 * ppm)))
     else:
         door_w, door_h = int(1.0 * ppm), int(2.2 * ppm)
         dx = int(rng.uniform(0.4, max(0.41, width_m - 1.5)) * ppm)
@@ -308,18 +313,24 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
                 continue
             x0 = int((margin + c * bay + (bay - win_w) / 2) * ppm)
             _window(rgb, aux, x0, y0, int(win_w * ppm), int(win_h * ppm), (wid - 1) % 255 + 1, rng, frame_col)
+            fw = max(2, int(0.05 * int(win_w * ppm)))
+            x1 = x0 + int(win_w * ppm)
+            ledges += [(x0 - fw, x1 + fw, y0 + int(win_h * ppm)), (x0 - fw, x1 + fw, y0 - fw)]
             wid += 1
             if rng.random() < 0.06:  # an air conditioner under some windows
                 ax0, ay0 = x0 + int(0.1 * ppm), y0 + int(win_h * ppm) + 6
+                ledges.append((ax0, ax0 + int(0.6 * ppm), ay0))
                 rgb[ay0:ay0 + int(0.4 * ppm), ax0:ax0 + int(0.6 * ppm)] = np.float32([0.75, 0.75, 0.72])
                 rgb[ay0 + 4:ay0 + int(0.4 * ppm) - 4:3, ax0 + 4:ax0 + int(0.6 * ppm) - 4] *= 0.6
         if f > start_floor and rng.random() < 0.5:  # string course between floors
             yb = y_floor_bottom - 4
             rgb[yb:yb + 6] = rgb[yb:yb + 6] * 0.7 + frame_col * 0.3
+            ledges.append((0, W, yb))
     # Cornice at the top and a drain pipe.
     ch = int(rng.uniform(0.2, 0.6) * ppm)
     rgb[:ch] = rgb[:ch] * 0.5 + frame_col * 0.4
     rgb[ch:ch + 3] *= 0.55
+    ledges.append((0, W, ch))
     if rng.random() < 0.6:
         px = int(rng.choice([0.15, width_m - 0.25]) * ppm)
         rgb[:, px:px + 4] = np.float32([0.35, 0.36, 0.36])
@@ -329,7 +340,48 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
             px, py = int(rng.uniform(0, width_m - 0.8) * ppm), H - int(rng.uniform(1.0, 2.2) * ppm)
             if py + ph < H and px + pw < W and aux[py:py + ph, px:px + pw].max() == 0:
                 rgb[py:py + ph, px:px + pw] = sign_texture(rng, pw, ph)
+    rgb = _ledge_snow(rgb, ledges, snow, seed, snow_pattern, texel)
     return _finish(rgb, aux, blur=0.7)
+
+
+# Snow on a ledge: depth (m) and the share of the ledge's length covered, per level 1..4.
+LEDGE_SNOW = {1: (0.03, 0.35), 2: (0.05, 0.6), 3: (0.08, 0.85), 4: (0.12, 1.0)}
+
+
+def _ledge_snow(rgb: np.ndarray, ledges, snow: int, seed: int, pattern: int, texel: float) -> np.ndarray:
+    """Snow lying on a facade's horizontal ledges (Sec. IV-A-1: winter changes buildings too).
+
+    Vertical walls hold no snow, but sills, lintels, string courses, cornices and sign tops
+    do: a white band on top of each ledge, ``LEDGE_SNOW[level]`` deep, covering stretches
+    drawn from ``(seed, pattern)`` (the same pack keeps its pattern; each new snowfall lays
+    another), so window corners, where many interest points sit, change in winter.
+    """
+    if snow <= 0 or not ledges:
+        return rgb
+    depth_m, share = LEDGE_SNOW[int(min(snow, 4))]
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 78, int(pattern) & 0xFFFFFFFF])
+    h, w = rgb.shape[:2]
+    along = value_noise((1, w), rng, cell=max(2.0, 0.6 / texel), octaves=2)[0]
+    covered = along < np.quantile(along, share) if share < 1.0 else np.ones(w, bool)
+    depth = max(1, int(round(depth_m / texel)))
+    white = np.float32([0.93, 0.94, 0.97])
+    out = rgb.copy()
+    for x0, x1, y in ledges:
+        x0, x1 = max(0, int(x0)), min(w, int(x1))
+        y0, y1 = max(0, int(y) - depth), min(h, int(y) + 1)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        cols = np.flatnonzero(covered[x0:x1]) + x0
+        if cols.size:
+            # A rounded drift: deepest mid-ledge, thinning towards the ends.
+            t = (cols - x0) / max(1, x1 - x0 - 1)
+            top = y1 - 1 - np.round((y1 - y0 - 1) * np.sqrt(np.clip(4 * t * (1 - t), 0, 1))).astype(int)
+            rows = np.arange(y0, y1)[:, None]
+            mask = rows >= top[None, :]
+            region = out[y0:y1, cols]
+            region[mask] = white * rng.uniform(0.9, 1.0)
+            out[y0:y1, cols] = region
+    return out
 
 
 def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, texel: float = 0.04,
