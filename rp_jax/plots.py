@@ -23,6 +23,7 @@ __all__ = [
     "plot_average_curves",
     "plot_category_curves",
     "plot_examples",
+    "plot_own_date_contrast",
     "experiment_figures",
     "save_figure",
 ]
@@ -59,6 +60,13 @@ def _mean_and_count(curve) -> tuple[np.ndarray, np.ndarray | None]:
     return np.asarray(curve, np.float64), None
 
 
+def _upper_limit(curves: Mapping[str, object]) -> float:
+    """1, or less when every curve stays low (averages of ~0.1 would be flat lines at 0..1)."""
+    peaks = [np.nanmax(m) for m, _ in map(_mean_and_count, curves.values()) if np.isfinite(m).any()]
+    peak = max(peaks, default=1.0)
+    return 1.0 if peak > 0.6 else float(np.ceil(peak * 1.25 * 20) / 20)
+
+
 def _draw(ax, curves: Mapping[str, object], slot_labels: Sequence[str]) -> None:
     x = np.arange(len(slot_labels))
     for name, curve in curves.items():
@@ -75,7 +83,7 @@ def _draw(ax, curves: Mapping[str, object], slot_labels: Sequence[str]) -> None:
     step = max(1, math.ceil(len(slot_labels) / 12))
     ax.set_xticks(x[::step])
     ax.set_xticklabels([slot_labels[i] for i in x[::step]], rotation=45, ha="right")
-    ax.set_ylim(0.0, 1.0)
+    ax.set_ylim(0.0, _upper_limit(curves))
     ax.set_xlim(-0.5, len(slot_labels) - 0.5)
     ax.grid(True, alpha=0.3)
 
@@ -309,3 +317,42 @@ def experiment_figures(
             )
         )
     return paths
+
+
+def plot_own_date_contrast(
+    contrast: Mapping[str, Mapping[str, Mapping[str, float]]],
+    out: str | Path,
+    *,
+    title: str = "Repeatability at the interest point's own date vs the other dates",
+) -> Path:
+    """Bars per category group: mean y at the point's own timestamp and at the others.
+
+    Args:
+      contrast: split -> ``statistics.own_date_contrast`` (group -> own, others, count).
+      out: PNG path.
+      title: figure title.
+    """
+    if not contrast or not any(contrast.values()):
+        raise ValueError("nothing to plot")
+    splits = list(contrast)
+    fig = _new_figure(4.5 * len(splits), 3.6)
+    for i, split in enumerate(splits):
+        ax = fig.add_subplot(1, len(splits), i + 1)
+        groups = list(contrast[split])
+        x = np.arange(len(groups))
+        own = [contrast[split][g]["own"] for g in groups]
+        others = [contrast[split][g]["others"] for g in groups]
+        ax.bar(x - 0.2, own, 0.4, label="own date")
+        ax.bar(x + 0.2, others, 0.4, label="other dates")
+        ax.set_xticks(x)
+        ax.set_xticklabels(
+            [f"{g}\n(n={contrast[split][g]['count']})" for g in groups], fontsize="small"
+        )
+        ax.set_ylim(0.0, 1.0)
+        ax.set_ylabel("mean repeatability")
+        ax.set_title(split)
+        ax.grid(True, axis="y", alpha=0.3)
+        ax.legend(loc="upper right", fontsize="small")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, out)

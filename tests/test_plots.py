@@ -74,3 +74,24 @@ def test_average_curve_is_the_masked_mean():
     np.testing.assert_allclose(groups["building"][0][:2], [1.0, 0.5])
     assert set(groups) == {"building", "vegetation"}
     assert statistics.counts(np.array([3, 1, 3])) == {1: 1, 3: 2}
+
+
+def test_own_date_contrast_by_hand_and_png(tmp_path):
+    # Point 0 (vehicle, slot 1): y = [0.1, 1.0, 0.3], all valid -> own 1.0, others 0.2.
+    # Point 1 (building, slot 0): y = [0.8, 0.6, nan-masked] -> own 0.8, others 0.6.
+    # Point 2 (vehicle, slot 2) has no other valid slot: left out.
+    label = np.array([[0.1, 1.0, 0.3], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]])
+    mask = np.array([[1, 1, 1], [1, 1, 0], [0, 0, 1]], bool)
+    got = statistics.own_date_contrast(label, mask, np.array([2, 0, 2]), np.array([1, 0, 2]))
+    assert got["vehicle"] == pytest.approx({"own": 1.0, "others": 0.2, "count": 1})
+    assert got["building"] == pytest.approx({"own": 0.8, "others": 0.6, "count": 1})
+    assert "vegetation" not in got
+    with pytest.raises(ValueError, match="do not agree"):
+        statistics.own_date_contrast(label, mask, np.array([2, 0, 2]), np.array([1, 0]))
+    out = plots.plot_own_date_contrast({"test": got}, tmp_path / "own.png")
+    assert _coloured_pixels(out) > 100
+
+
+def test_low_curves_get_a_readable_axis():
+    assert plots._upper_limit({"a": np.array([0.1, 0.16, np.nan])}) == pytest.approx(0.2)
+    assert plots._upper_limit({"a": np.array([0.2, 0.9])}) == 1.0

@@ -7,7 +7,9 @@
 records per split, per timestamp (the slot of the image an interest point comes from) and
 per category where known. ``curves`` writes the average ground-truth repeatability curve
 of each split to ``--out`` and, where categories are known, the Fig. 9 per-category
-curves to ``<out stem>_categories.png``.
+curves to ``<out stem>_categories.png`` and each category's repeatability at the interest
+point's own timestamp against the others (parked cars: only their own date) to
+``<out stem>_own_date.png``.
 """
 
 from __future__ import annotations
@@ -144,11 +146,12 @@ def _curves(args) -> int:
         raise _UsageError(f"--out must name a .png file, got {args.out}")
     labels = preset(args.name).labels
     per_split, per_group = {}, {g: {} for g in categories.FIGURE9_GROUPS}
+    contrast = {}
     for split in loading.splits(args.name, config=args.config, data_dir=args.data_dir):
         cols = loading.load_columns(
             args.name,
             split,
-            keys=("label", "label_mask", "category"),
+            keys=("label", "label_mask", "category", "slot"),
             config=args.config,
             data_dir=args.data_dir,
         )
@@ -159,6 +162,9 @@ def _curves(args) -> int:
             cols["label"], cols["label_mask"], cols["category"]
         ).items():
             per_group[group][split] = curve
+        contrast[split] = statistics.own_date_contrast(
+            cols["label"], cols["label_mask"], cols["category"], cols["slot"]
+        )
     if not per_split:
         raise _UsageError(f"{args.name}/{args.config} has no records to plot")
     title = f"{args.name} ({args.config}): average ground-truth repeatability"
@@ -173,6 +179,18 @@ def _curves(args) -> int:
         written.append(
             plots.plot_category_curves(
                 per_group, labels, out, title=f"{args.name} ({args.config}): per category"
+            )
+        )
+    if any(contrast.values()):
+        for split, groups in contrast.items():
+            print(
+                f"{split}, own timestamp vs others: "
+                + ", ".join(f"{g} {v['own']:.3f} vs {v['others']:.3f}" for g, v in groups.items())
+            )
+        out = args.out.with_name(f"{args.out.stem}_own_date.png")
+        written.append(
+            plots.plot_own_date_contrast(
+                contrast, out, title=f"{args.name} ({args.config}): own timestamp vs the others"
             )
         )
     for path in written:

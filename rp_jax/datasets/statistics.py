@@ -14,7 +14,7 @@ import numpy as np
 
 from rp_jax import categories, evaluation
 
-__all__ = ["average_curve", "category_curves", "counts"]
+__all__ = ["average_curve", "category_curves", "counts", "own_date_contrast"]
 
 
 def average_curve(label: np.ndarray, label_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,3 +55,46 @@ def counts(values: np.ndarray) -> dict[int, int]:
     """Value -> how many times it occurs, sorted by value."""
     uniq, n = np.unique(np.asarray(values), return_counts=True)
     return {int(u): int(c) for u, c in zip(uniq, n)}
+
+
+def own_date_contrast(
+    label: np.ndarray,
+    label_mask: np.ndarray,
+    category: np.ndarray,
+    slot: np.ndarray,
+    groups: Mapping[str, Sequence[int]] = categories.FIGURE9_GROUPS,
+) -> dict[str, dict[str, float]]:
+    """Per category group: mean y at the interest point's own timestamp vs at the others.
+
+    Sec. IV-A-2 / Fig. 9: a parked car is repeatable at the date it was seen and hardly
+    at any other, while a facade is repeatable at most dates. Own: y^{j0} with j0 the slot
+    of the point's image (its own image counts as an inlier, so y^{j0} >= 1/m_{j0}).
+    Others: the mean of y^j over the point's other valid slots, averaged over points.
+
+    Returns:
+      group -> ``{"own": ..., "others": ..., "count": n}`` (groups without points left out).
+    """
+    label = np.asarray(label, np.float64)
+    mask = np.asarray(label_mask, bool)
+    slot = np.asarray(slot, np.int64)
+    category = np.asarray(category)
+    if label.shape != mask.shape or label.ndim != 2 or slot.shape != (len(label),):
+        raise ValueError(
+            f"label {label.shape}, label_mask {mask.shape} and slot {slot.shape} do not agree"
+        )
+    rows = np.arange(len(label))
+    own = label[rows, slot]
+    others_mask = mask.copy()
+    others_mask[rows, slot] = False
+    n_others = others_mask.sum(1)
+    others = np.where(others_mask, label, 0.0).sum(1) / np.maximum(n_others, 1)
+    out = {}
+    for group, ids in groups.items():
+        sel = np.isin(category, np.asarray(ids)) & (n_others > 0)
+        if sel.any():
+            out[group] = {
+                "own": float(own[sel].mean()),
+                "others": float(others[sel].mean()),
+                "count": int(sel.sum()),
+            }
+    return out

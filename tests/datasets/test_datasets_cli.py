@@ -67,6 +67,9 @@ def test_curves_writes_non_blank_pngs(capsys, data_dir, tmp_path):
     categories_png = out_png.with_name("webcam_curves_categories.png")
     _not_blank(categories_png)
     assert f"wrote {out_png}" in out and f"wrote {categories_png}" in out
+    own_png = out_png.with_name("webcam_curves_own_date.png")
+    _not_blank(own_png)
+    assert "own timestamp vs others:" in out
     # The printed curve values are repeatabilities.
     values = [
         float(v.split("=")[1])
