@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "experiment_figures",
     "plot_average_curves",
     "plot_category_curves",
     "plot_examples",
     "plot_own_date_contrast",
-    "experiment_figures",
     "save_figure",
 ]
 
