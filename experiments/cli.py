@@ -7,6 +7,9 @@ Every experiment takes the same flags::
     --size tiny|small|full   synthetic size (default full; ignored with --data-dir)
     --tfds-dir DIR       where built TFDS datasets are kept (default ./data/tensorflow_datasets)
     --config.FIELD=VALUE any field of the experiment's config, e.g. --config.num_epochs=3
+    --cross-validate     instead of the test run: hold out each training viewpoint in turn
+                         (rp_jax.crossval); writes <workdir>/crossval/crossval.{json,md}
+    --folds N            with --cross-validate: N groups of viewpoints (default: one each)
 """
 
 from __future__ import annotations
@@ -64,6 +67,15 @@ def apply_overrides(config: ml_collections.ConfigDict, overrides: list[str]) -> 
 def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
           doc: str) -> tuple[ml_collections.ConfigDict, Path]:
     """Parse the flags into (config, workdir)."""
+    config, workdir, _ = parse_flags(argv, name, get_config, doc)
+    return config, workdir
+
+
+def parse_flags(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
+                doc: str, *, cross_validation: bool = False
+                ) -> tuple[ml_collections.ConfigDict, Path, argparse.Namespace]:
+    """Parse the flags into (config, workdir, the parsed flags); ``cross_validation`` adds
+    ``--cross-validate`` and ``--folds`` (the Sec. IV-A experiments)."""
     parser = argparse.ArgumentParser(prog=f"python -m experiments.{name}", description=doc,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--workdir", type=Path, default=None, help="run directory (resumes if present)")
@@ -71,7 +83,17 @@ def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_coll
                         help="a real download in its real layout (default: the synthetic world)")
     parser.add_argument("--size", choices=SIZES, default="full", help="synthetic size (default full)")
     parser.add_argument("--tfds-dir", type=Path, default=None, help="TFDS data directory")
+    if cross_validation:
+        parser.add_argument("--cross-validate", action="store_true",
+                            help="hold out each training viewpoint in turn instead of testing")
+        parser.add_argument("--folds", type=int, default=0,
+                            help="with --cross-validate: groups of viewpoints (default 0: one per viewpoint)")
+    parser.set_defaults(cross_validate=False, folds=0)
     args, rest = parser.parse_known_args(argv)
+    if args.folds and not args.cross_validate:
+        parser.error("--folds needs --cross-validate")
+    if args.folds < 0 or args.folds == 1:
+        parser.error(f"--folds must be 0 (one per viewpoint) or at least 2, got {args.folds}")
     size = args.size
     config = get_config(size)
     if args.data_dir is not None:
@@ -84,12 +106,12 @@ def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_coll
         config.data_dir = str(args.tfds_dir.absolute())
     apply_overrides(config, rest)
     workdir = args.workdir or Path("runs") / f"{name}_{size}"
-    return config, workdir
+    return config, workdir, args
 
 
 def main(argv, name: str, get_config, doc: str) -> int:
     """Parse flags, run ``rp_jax.experiment.run`` and print the headline figures."""
-    config, workdir = parse(argv, name, get_config, doc)
+    config, workdir, args = parse_flags(argv, name, get_config, doc, cross_validation=True)
     from rp_jax import platform
 
     platform.configure_cpu()
@@ -97,8 +119,15 @@ def main(argv, name: str, get_config, doc: str) -> int:
     from rp_jax.sources.layout import LayoutError
 
     try:
+        if args.cross_validate:
+            return _cross_validate(config, Path(workdir) / "crossval", args.folds)
         metrics = experiment.run(config, workdir)
     except LayoutError as e:  # a --data-dir that is not the dataset's layout: say what is missing
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:
+        if not args.cross_validate:
+            raise
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
     b = metrics["baselines"]
@@ -106,4 +135,15 @@ def main(argv, name: str, get_config, doc: str) -> int:
     print(f"test MAE {metrics['test_mae']:.4f} (per-slot mean {b['per_slot_mean']['test_mae']:.4f}, "
           f"slot-conditioned {b['slot_conditioned_mean']['test_mae']:.4f}, "
           f"descriptor kNN {b['descriptor_knn']['test_mae']:.4f}); curve corr {metrics['curve_corr']:.3f}")
+    return 0
+
+
+def _cross_validate(config, workdir: Path, folds: int) -> int:
+    """Leave-viewpoints-out over the training split; prints the summary table."""
+    from rp_jax import crossval, experiment
+
+    data = experiment.build_dataset(config, workdir)
+    result = crossval.cross_validate(config, workdir, data["train"], num_folds=folds)
+    print(crossval.markdown(result))
+    print(f"wrote {workdir}/crossval.json and crossval.md")
     return 0

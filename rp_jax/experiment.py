@@ -32,6 +32,9 @@ __all__ = [
     "model_source",
     "last_validation",
     "write_json",
+    "read_json",
+    "read_jsonl",
+    "subset",
 ]
 
 log = logging.getLogger(__name__)
@@ -79,7 +82,8 @@ def _model_keys() -> tuple[str, ...]:
     return tuple(MODEL_KEYS)
 
 
-def _subset(columns: dict, mask: np.ndarray) -> dict:
+def subset(columns: dict, mask: np.ndarray) -> dict:
+    """The rows of every column where ``mask`` is true."""
     return {k: v[mask] for k, v in columns.items()}
 
 
@@ -108,7 +112,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
         raise ValueError(f"{config.dataset}/{config.data_config}: an empty split "
                          f"(train {len(full_train['label'])}, test {len(test['label'])} points)")
     val_mask = split_validation(full_train["viewpoint"], config.validation_fraction, config.seed)
-    train_cols, val_cols = _subset(full_train, ~val_mask), _subset(full_train, val_mask)
+    train_cols, val_cols = subset(full_train, ~val_mask), subset(full_train, val_mask)
     log.info("points: train %d, validation %d, test %d", len(train_cols["label"]),
              len(val_cols["label"]), len(test["label"]))
 
@@ -207,11 +211,27 @@ def _image_loader(config):
     return load
 
 
+def read_json(path: Path):
+    """A JSON file, with an error naming the file if it is not JSON (e.g. cut short)."""
+    try:
+        return json.loads(Path(path).read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path} is not valid JSON ({e}); delete it to start over") from e
+
+
+def read_jsonl(path: Path) -> list[dict]:
+    """The records of a JSON-lines file (``metrics.jsonl``); [] if it does not exist."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    return [json.loads(l) for l in path.read_text().splitlines() if l.strip()]
+
+
 def last_validation(workdir: Path) -> dict | None:
     path = workdir / "metrics.jsonl"
     if not path.exists():
         return None
-    lines = [json.loads(l) for l in path.read_text().splitlines() if l.strip()]
+    lines = read_jsonl(path)
     val = [l for l in lines if "val_mse" in l]
     return {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]} if val else None
 

@@ -100,22 +100,46 @@ def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -
 
 
 def augment_patches(patches: jnp.ndarray, rng, *, brightness: float, contrast: float,
-                    flip: bool) -> jnp.ndarray:
-    """Photometric jitter and horizontal flips of preprocessed (centred) patches (pure).
+                    flip: bool, colour: float = 0.0, zoom: float = 0.0) -> jnp.ndarray:
+    """Photometric and geometric jitter of preprocessed (centred) patches (pure).
 
-    With few training viewpoints the network otherwise learns each scene's colours; a
-    brightness shift of up to +-``brightness``, a contrast factor in 1 +- ``contrast`` and a
-    mirror image leave what makes a point repeatable (its structure) in place.
+    With few training viewpoints the network otherwise learns each scene's look; a
+    brightness shift of up to +-``brightness``, a contrast factor in 1 +- ``contrast``, a gain
+    per colour channel in 1 +- ``colour`` (another scene's palette and white balance), a
+    zoom-in about the keypoint by a factor in [1, 1 + ``zoom``] (the same structure seen
+    from a nearer camera; the patch size is fixed in pixels) and a mirror image leave what
+    makes a point repeatable (its structure) in place.
     """
-    k1, k2, k3 = jax.random.split(rng, 3)
+    k1, k2, k3, k4, k5 = jax.random.split(rng, 5)
     n = patches.shape[0]
     shift = jax.random.uniform(k1, (n, 1, 1, 1), minval=-brightness, maxval=brightness)
     gain = jax.random.uniform(k2, (n, 1, 1, 1), minval=1 - contrast, maxval=1 + contrast)
+    if colour:
+        gain = gain * jax.random.uniform(k4, (n, 1, 1, patches.shape[-1]), minval=1 - colour,
+                                         maxval=1 + colour)
     out = patches * gain + shift
+    if zoom:
+        out = jax.vmap(_zoom_about_centre)(out, jax.random.uniform(k5, (n,), minval=1.0,
+                                                                   maxval=1.0 + zoom))
     if flip:
         mirror = jax.random.bernoulli(k3, 0.5, (n, 1, 1, 1))
         out = jnp.where(mirror, out[:, :, ::-1, :], out)
     return out
+
+
+def _zoom_about_centre(patch: jnp.ndarray, factor: jnp.ndarray) -> jnp.ndarray:
+    """[H, W, C] patch magnified by ``factor`` >= 1 about its centre (bilinear), same size.
+
+    Separable: ``A_y @ patch @ A_x^T`` with the bilinear weights of output pixel i at source
+    position c + (i - c) / factor, c the centre; two small matrix products instead of a
+    per-pixel gather (several times cheaper on a CPU).
+    """
+    def weights(n: int) -> jnp.ndarray:
+        c = (n - 1) / 2.0
+        src = c + (jnp.arange(n, dtype=jnp.float32) - c) / factor
+        return jnp.maximum(0.0, 1.0 - jnp.abs(src[:, None] - jnp.arange(n, dtype=jnp.float32)[None, :]))
+
+    return jnp.einsum("ij,jkc,lk->ilc", weights(patch.shape[0]), patch, weights(patch.shape[1]))
 
 
 def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict]:
@@ -126,10 +150,12 @@ def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict
     """
     patches, xy, time_features = model_inputs(batch, config)
     aug = config.get("augment")
-    if aug is not None and (aug.brightness or aug.contrast or aug.flip):
+    if aug is not None and (aug.brightness or aug.contrast or aug.flip or aug.get("colour")
+                            or aug.get("zoom")):
         rng = jax.random.fold_in(jax.random.key(config.seed), state.step)
         patches = augment_patches(patches, rng, brightness=aug.brightness, contrast=aug.contrast,
-                                  flip=aug.flip)
+                                  flip=aug.flip, colour=aug.get("colour", 0.0),
+                                  zoom=aug.get("zoom", 0.0))
 
     def loss_fn(params):
         pred = state.apply_fn({"params": params}, patches, xy, time_features)

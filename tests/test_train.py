@@ -142,6 +142,35 @@ def test_augment_patches_is_seeded_and_mirrors():
     assert not np.allclose(b, x)
 
 
+def test_colour_gain_changes_channels_independently():
+    import jax.numpy as jnp
+
+    x = jnp.full((64, 8, 8, 3), 0.4, jnp.float32)
+    out = np.asarray(train.augment_patches(x, jax.random.key(3), brightness=0.0, contrast=0.0,
+                                           flip=False, colour=0.2))
+    ratio = out[:, 0, 0, :] / 0.4  # the per-channel gains
+    assert np.all((ratio > 0.8 - 1e-6) & (ratio < 1.2 + 1e-6))
+    assert np.ptp(ratio, axis=1).max() > 0.05  # channels differ within a patch
+    np.testing.assert_allclose(out, out[:, :1, :1, :].repeat(8, 1).repeat(8, 2), atol=1e-6)
+
+
+def test_zoom_magnifies_about_the_keypoint():
+    import jax.numpy as jnp
+
+    x = np.zeros((1, 64, 64, 3), np.float32)
+    x[0, 30:34, 30:34] = 1.0  # a 4x4 blob at the keypoint
+    x[0, 0:4, 0:4] = 1.0  # and one in the corner
+    twice = np.asarray(train._zoom_about_centre(jnp.asarray(x[0]), jnp.asarray(2.0)))[..., 0]
+    on = np.argwhere(twice > 0.5)
+    assert on.min(0).tolist() == [28, 28] and on.max(0).tolist() == [35, 35]  # 8x8, centred
+    same = train._zoom_about_centre(jnp.asarray(x[0]), jnp.asarray(1.0))
+    np.testing.assert_allclose(same, x[0], atol=1e-6)
+    z = np.asarray(train.augment_patches(jnp.asarray(np.repeat(x, 16, 0)), jax.random.key(0),
+                                         brightness=0.0, contrast=0.0, flip=False, zoom=0.5))
+    blob = (z[..., 0] > 0.5).sum((1, 2))
+    assert blob.min() >= 16 and blob.max() > 20  # never shrinks, usually grows
+
+
 def test_keep_best_saves_the_best_validation_epoch(tmp_path):
     import json
 

@@ -43,6 +43,8 @@ def get_config() -> ml_collections.ConfigDict:
     config.augment.brightness = 0.0  # max brightness shift of centred patches (0 = off)
     config.augment.contrast = 0.0  # max relative contrast change (0 = off)
     config.augment.flip = False  # random horizontal mirror of patches
+    config.augment.colour = 0.0  # max relative gain change per colour channel (0 = off)
+    config.augment.zoom = 0.0  # max zoom-in about the keypoint, factor in [1, 1 + zoom] (0 = off)
     config.keep_best = False  # keep the best-validation parameters in workdir/best
 
     # Loop, devices and checkpoints.
