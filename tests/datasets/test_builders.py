@@ -169,6 +169,32 @@ def test_synthetic_root_of_another_size_is_refused(tmp_path):
         builder_lib.ensure_synthetic("robotcar", root, size="tiny", seed=0, workers=1)
 
 
+def test_synthetic_root_of_an_older_world_version_is_rendered_again(tmp_path, monkeypatch):
+    from rp_jax.sources import synthetic
+    from rp_jax.sources.synthetic import presets
+
+    root = tmp_path / "world"
+    (root / "_synthetic").mkdir(parents=True)
+    (root / "stale.jpg").write_bytes(b"old pixels")
+    marker = {"preset": "robotcar", "size": "tiny", "seed": 0}  # no "world": version 1
+    (root / "_synthetic" / "generation.json").write_text(json.dumps(marker))
+    calls = []
+
+    def fake_generate(name, out, **kwargs):
+        calls.append((name, out, (out / "stale.jpg").exists()))
+        return out
+
+    monkeypatch.setattr(synthetic, "generate", fake_generate)
+    builder_lib.ensure_synthetic("robotcar", root, size="tiny", seed=0, workers=1)
+    assert calls == [("robotcar", root, False)]  # the old frames are gone before rendering
+    # The current version is kept as it is.
+    root.mkdir(exist_ok=True)
+    (root / "_synthetic").mkdir(exist_ok=True)
+    (root / "_synthetic" / "generation.json").write_text(json.dumps({**marker, "world": presets.WORLD_VERSION}))
+    builder_lib.ensure_synthetic("robotcar", root, size="tiny", seed=0, workers=1)
+    assert len(calls) == 1
+
+
 def test_synthetic_root_default_location(tmp_path):
     root = builder_lib.synthetic_root(tmp_path / "tfds", "cmu_seasons", "small")
     assert root == (tmp_path / "synthetic" / "cmu_seasons_small").resolve()

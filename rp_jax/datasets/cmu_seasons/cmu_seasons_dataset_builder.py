@@ -19,8 +19,10 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "cmu_seasons"
     BUILDER_CONFIGS = builder.builder_configs(records_per_image=32)
-    VERSION = tfds.core.Version("1.1.0")
+    VERSION = tfds.core.Version("1.2.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
+        "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges; the full synthetic world is 20 "
         "capture positions per slice at half the real resolution (a run in minutes), and 32 "
         "of each image's interest points become records (the paper's 61,726 points). "

@@ -18,8 +18,10 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "robotcar"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.1.0")
+    VERSION = tfds.core.Version("1.2.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
+        "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges on snowy days. Ground-truth "
         "caches hold no patches and follow changes of the image files.",
         "1.0.0": "Initial release: SIFT interest points on demosaiced images, pose-based "

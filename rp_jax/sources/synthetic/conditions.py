@@ -55,6 +55,7 @@ class Conditions:
     lamps_on: bool
     window_lit_prob: float
     cloud_offset: np.ndarray  # (2,) metres of cloud drift (wind x time)
+    wind_speed: float  # m/s, the day's wind (drifts clouds, moves foliage)
     local_hour: float
     day_of_year: int
 
@@ -324,6 +325,7 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         autumn=round(autumn * 10) / 10, grass=grass, sun_rgb=direct.astype(np.float32),
         sky_rgb=sky_rgb.astype(np.float32), zenith_rgb=zenith.astype(np.float32),
         horizon_rgb=horizon.astype(np.float32), lamps_on=bool(lamps_on), window_lit_prob=lit,
-        cloud_offset=(wind * (ts % 86400.0)).astype(np.float64), local_hour=hour,
+        cloud_offset=(wind * (ts % 86400.0)).astype(np.float64), wind_speed=float(np.hypot(*wind)),
+        local_hour=hour,
         day_of_year=date.timetuple().tm_yday,
     )

@@ -126,6 +126,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
+# Bumped whenever the same (preset, size, seed) renders different pixels; a layout rendered
+# by another version is rendered again (``rp_jax.datasets.builder.ensure_synthetic``).
+# 2: foliage moves in the wind (``render.FOLIAGE_SWAY_M``).
+WORLD_VERSION = 2
 SIZES = ("tiny", "small", "full")
 SYNTHETIC_DIR = "_synthetic"  # per-frame side products (keypoints for the COLMAP model)
 EVALUATION_DIR = "_evaluation"
@@ -1095,7 +1099,9 @@ def generate(
     layouts.write_text_atomic(
         out_dir / SYNTHETIC_DIR / "generation.json",
         json.dumps(
-            {"preset": preset, "size": size, "seed": seed, "frames": len(the_plan.jobs)}, indent=2
+            {"preset": preset, "size": size, "seed": seed, "world": WORLD_VERSION,
+             "frames": len(the_plan.jobs)},
+            indent=2
         )
         + "\n",
     )

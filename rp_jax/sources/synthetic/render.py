@@ -37,6 +37,12 @@ __all__ = ["View", "Frame", "render", "project", "contact_sheet", "look_at"]
 
 SS = 2  # supersampling factor
 NEAR = 0.05
+# Leaves move in the wind: each frame displaces a crown's texels by a smooth random field
+# (std: calm sway + per m/s of the day's wind; correlation length: a leaf cluster), so
+# foliage never looks the same in two frames, as on a real webcam. Beaufort 4 (about
+# 7 m/s, "small branches move") gives about 5 cm.
+FOLIAGE_SWAY_M = (0.02, 0.004)
+FOLIAGE_CLUSTER_M = 0.35
 CLOUD_ALTITUDE = 1500.0
 _CLOUD_M_PER_TEXEL = 12.0
 LAMP_POWER = 0.25  # street-lamp intensity: about 6e-3 under a lamp, 1/150 of the noon sun
@@ -249,12 +255,29 @@ def _visible_strips(m: np.ndarray) -> list[tuple[int, int, int, int]]:
     return rects
 
 
-def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: int, H: int) -> _GBuffer:
+def _flutter(warped: np.ndarray, amp_px: float, step_px: float, rng: np.random.Generator) -> np.ndarray:
+    """``warped`` (RGBA) resampled through a smooth random displacement of std ``amp_px``
+    pixels, correlated over ``step_px`` pixels (bicubic upsampling of a coarse normal grid)."""
+    h, w = warped.shape[:2]
+    if amp_px < 0.2 or h < 2 or w < 2:
+        return warped
+    step = max(step_px, 2.0)
+    gh, gw = int(np.ceil(h / step)) + 2, int(np.ceil(w / step)) + 2
+    grid = rng.normal(0.0, amp_px, (gh, gw, 2)).astype(np.float32)
+    field = cv2.resize(grid, (int(gw * step), int(gh * step)), interpolation=cv2.INTER_CUBIC)[:h, :w]
+    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    return cv2.remap(warped, xs + field[..., 0], ys + field[..., 1], cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT)
+
+
+def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: int, H: int,
+               flutter: tuple[int, float] | None = None) -> _GBuffer:
     """Z-buffered rasterisation of textured quads, front to back.
 
     Quads are drawn nearest first, so the depth test runs before texturing and a quad's
     texture is warped only over the bounding box of its still-visible pixels (fully hidden
     quads cost a polygon fill and a compare). Masked writes use ``cv2.copyTo``.
+    ``flutter`` = (frame key, sway in metres) moves foliage texels (see ``FOLIAGE_SWAY_M``).
     """
     N = quads.n
     C = -R.T @ t
@@ -329,6 +352,19 @@ def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: in
         alpha = bool(two_sided[i])
         pyr = scene.textures.pyramid(quads.tex[i], state)
         area = None if needs_clip[j] else area_all[j]
+        if flutter is not None and quads.material[i] == Material.FOLIAGE:
+            # The whole box at once (a field continuous across strips), then displaced.
+            z = max(float(zc[i].mean()), NEAR)
+            warped = _warp(pyr, o[i], u[i], v[i], K, R, t, (x0, y0, x0 + bw, y0 + bh), pix, alpha, area)
+            rng = np.random.default_rng((scene.seed, int(i), flutter[0]))
+            warped = _flutter(warped, flutter[1] * K[0, 0] / z, FOLIAGE_CLUSTER_M * K[0, 0] / z, rng)
+            sm = m & np.greater(warped[..., 3], 127).view(np.uint8)
+            cv2.copyTo(iz, sm, zb[y0:y0 + bh, x0:x0 + bw])
+            cv2.copyTo(warped, sm, gb[y0:y0 + bh, x0:x0 + bw])
+            cv2.copyTo(np.full((bh, bw), i, np.int32), sm, qid[y0:y0 + bh, x0:x0 + bw])
+            drawn[i] = True
+            rois[i] = (x0, y0, x0 + bw, y0 + bh)
+            continue
         for rx, ry, rw, rh in _visible_strips(m):
             sm, siz = m[ry:ry + rh, rx:rx + rw], iz[ry:ry + rh, rx:rx + rw]
             sx0, sy0 = x0 + rx, y0 + ry
@@ -591,7 +627,8 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0) -> Fra
     S = np.array([[SS, 0, (SS - 1) / 2], [0, SS, (SS - 1) / 2], [0, 0, 1.0]])
     Kss = S @ Kc
     W2, H2 = Wc * SS, Hc * SS
-    gbuf = _rasterize(quads, scene, state, Kss, R, t, W2, H2)
+    sway = FOLIAGE_SWAY_M[0] + FOLIAGE_SWAY_M[1] * cond.wind_speed
+    gbuf = _rasterize(quads, scene, state, Kss, R, t, W2, H2, flutter=(int(when.timestamp()), sway))
     sun = cond.sun_dir
     nrm = quads.normal
     mat = quads.material

@@ -175,6 +175,37 @@ def test_vegetation_changes_with_season():
     assert veg_jan < 0.5 * veg_july
 
 
+def test_foliage_moves_between_frames_and_buildings_do_not():
+    s = build_scene(4, vegetation=0.9)
+    view = look_at((20.0, s.sidewalk_y[0], 1.7), (24.0, s.sidewalk_y[1], 4.0), width=320, height=240, fov_deg=75.0)
+    when = dt.datetime(2024, 7, 20, 12, 0, tzinfo=TZ)
+    a, b = render(s, view, when), render(s, view, when + dt.timedelta(seconds=2))
+    again = render(s, view, when)
+    np.testing.assert_array_equal(a.rgb, again.rgb)  # deterministic per instant
+    diff = np.abs(a.rgb.astype(np.int16) - b.rgb.astype(np.int16)).max(-1)
+    veg = (a.category == categories.VEGETATION) & (b.category == categories.VEGETATION)
+    bld = (a.category == categories.BUILDING) & (b.category == categories.BUILDING)
+    assert veg.sum() > 2000 and bld.sum() > 2000
+    assert np.mean(diff[veg] > 30) > 0.05  # leaves moved
+    assert np.mean(diff[bld] > 30) < 0.01  # walls only get sensor noise
+
+
+def test_flutter_is_smooth_seeded_and_off_when_calm():
+    from rp_jax.sources.synthetic.render import _flutter
+
+    img = np.zeros((64, 64, 4), np.uint8)
+    for c in range(0, 64, 8):
+        img[:, c:c + 3] = 255  # vertical stripes, 3 px wide
+    rng = lambda: np.random.default_rng(5)  # noqa: E731
+    np.testing.assert_array_equal(_flutter(img, 0.1, 8.0, rng()), img)  # below 0.2 px: untouched
+    moved = _flutter(img, 2.0, 16.0, rng())
+    np.testing.assert_array_equal(moved, _flutter(img, 2.0, 16.0, rng()))
+    assert not np.array_equal(moved, img)
+    # Smooth: neighbouring rows are displaced alike, so a stripe stays one connected line.
+    n, _ = cv2.connectedComponents((moved[8:-8, 8:-8, 0] > 127).astype(np.uint8))
+    assert n - 1 <= 8
+
+
 def test_contact_sheet():
     imgs = [np.full((48, 64, 3), v, np.uint8) for v in (0, 128, 255)]
     sheet = contact_sheet(imgs, ["a", "b", "c"], columns=2, width=64)
