@@ -14,6 +14,7 @@ its checkpoints) and ``workdir/crossval.md``.
 from __future__ import annotations
 
 import copy
+import json
 import time
 from pathlib import Path
 
@@ -132,7 +133,13 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
     schedule = schedule_lib.preset(config.schedule)
     groups = viewpoint_folds(train_columns["viewpoint"], num_folds, config.seed)
     path = workdir / "crossval.json"
-    done = experiment.read_json(path).get("folds", {}) if path.exists() else {}
+    done = {}
+    if path.exists():
+        old = experiment.read_json(path)
+        if old.get("config") != json.loads(json.dumps(config.to_dict(), default=list)):
+            raise ValueError(f"{path} holds a cross-validation with another config; use a new "
+                             "--workdir or delete it")
+        done = old.get("folds", {})
     viewpoints = np.asarray(train_columns["viewpoint"]).astype(str)
     folds = {}
     for held in tqdm(groups, desc="cross-validation folds", unit="fold", disable=not progress):

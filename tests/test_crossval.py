@@ -70,6 +70,10 @@ def test_cross_validate_scores_each_held_out_viewpoint_and_resumes(tmp_path, mon
     monkeypatch.setattr(crossval, "_run_fold", no_training)
     again = crossval.cross_validate(_tiny_config(), tmp_path, cols, progress=False)
     assert again["summary"] == sm
+    other = _tiny_config()
+    other.learning_rate = 1e-4  # finished folds of another config are not mixed in
+    with pytest.raises(ValueError, match="another config"):
+        crossval.cross_validate(other, tmp_path, cols, progress=False)
 
 
 def test_summary_counts_wins_and_margins():
