@@ -26,6 +26,8 @@ from rp_jax import evaluation, schedule as schedule_lib
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
 
 METHODS = ("rp", "per_slot_mean", "slot_conditioned_mean", "descriptor_knn")
+LABELS = {"per_slot_mean": "the per-slot mean", "slot_conditioned_mean": "the slot-conditioned mean",
+          "descriptor_knn": "the descriptor kNN"}
 
 
 def viewpoint_folds(viewpoints: np.ndarray, num_folds: int = 0, seed: int = 0) -> list[list[str]]:
@@ -178,7 +180,7 @@ def markdown(result: dict) -> str:
     lines.append("")
     for m in METHODS[1:]:
         g = sm["rp_mae_margin"][m]
-        lines.append(f"- RP vs {m.replace('_', ' ')}: lower MAE on {sm['rp_wins'][m]} of "
+        lines.append(f"- RP vs {LABELS[m]}: lower MAE on {sm['rp_wins'][m]} of "
                      f"{sm['num_folds']} folds; relative MAE reduction {100 * g['mean']:+.1f} % on "
                      f"average (from {100 * g['min']:+.1f} % to {100 * g['max']:+.1f} %).")
     return "\n".join(lines) + "\n"

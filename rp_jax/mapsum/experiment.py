@@ -57,6 +57,7 @@ import datetime as dt
 import json
 import logging
 import os
+import shutil
 import time
 import zoneinfo
 from collections.abc import Mapping, Sequence
@@ -161,21 +162,30 @@ def ensure_cmu_map_layout(
 
     root = Path(root)
     done = root / presets.SYNTHETIC_DIR / "generation.json"
+    marker = root / presets.SYNTHETIC_DIR / "map_subset.json"
     if done.is_file():
         have = json.loads(done.read_text())
         want = {"preset": "cmu_seasons", "size": size, "seed": seed}
         if {k: have.get(k) for k in want} != want:
             raise ValueError(f"{root} holds the synthetic layout {have}, not {want}")
-        return root
-    marker = root / presets.SYNTHETIC_DIR / "map_subset.json"
+        if have.get("world", 1) == presets.WORLD_VERSION:
+            return root
     want_marker = {
         "size": size,
         "seed": seed,
         "slice": slice_id,
         "query_dates": sorted(d.isoformat() for d in query_dates),
+        "world": presets.WORLD_VERSION,
     }
     if marker.is_file() and json.loads(marker.read_text()) == want_marker:
         return root
+    old = json.loads(done.read_text()) if done.is_file() else (
+        json.loads(marker.read_text()) if marker.is_file() else None)
+    if old is not None and old.get("world", 1) != presets.WORLD_VERSION:
+        # Our own frames (a marker says so) from an older renderer: render them again.
+        log.warning("%s was rendered by synthetic world version %s; rendering version %s",
+                    root, old.get("world", 1), presets.WORLD_VERSION)
+        shutil.rmtree(root)
     tz = zoneinfo.ZoneInfo(CMU_TIMEZONE)
     plan = presets.plan("cmu_seasons", root, size=size, seed=seed)
     slice_name = f"slice{slice_id}"

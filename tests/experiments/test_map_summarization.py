@@ -198,3 +198,25 @@ def test_ensure_layout_rejects_a_date_without_queries(tmp_path):
             query_dates=[dt.date(2011, 3, 4)],
             progress=False,
         )
+
+
+def test_ensure_layout_renders_an_older_world_again(tmp_path, monkeypatch):
+    from rp_jax.sources.synthetic import presets
+
+    root = tmp_path / "cmu"
+    (root / presets.SYNTHETIC_DIR).mkdir(parents=True)
+    (root / "stale.jpg").write_bytes(b"old pixels")
+    old = {"size": "tiny", "seed": 0, "slice": 8, "query_dates": ["2011-03-04"]}  # world 1
+    (root / presets.SYNTHETIC_DIR / "map_subset.json").write_text(json.dumps(old))
+    rendered = []
+
+    def fake_run_jobs(jobs, **kwargs):
+        rendered.append((len(jobs), (root / "stale.jpg").exists()))
+        raise RuntimeError("stop after the render call")
+
+    monkeypatch.setattr(presets, "run_jobs", fake_run_jobs)
+    with pytest.raises((RuntimeError, ValueError)):
+        mexp.ensure_cmu_map_layout(root, size="tiny", seed=0, slice_id=8,
+                                   query_dates=[dt.date(2011, 3, 4)], progress=False)
+    assert not (root / "stale.jpg").exists()  # the version-1 frames are gone
+    assert all(not stale for _, stale in rendered)
