@@ -168,7 +168,7 @@ def markdown(result: dict) -> str:
     lines = ["# Cross-validation over the training viewpoints", "",
              "Each row: trained on the other training viewpoints, scored on these (test MAE over "
              "valid slots). The test split is not read.", "", head, "|---" * 7 + "|"]
-    for name, f in result["folds"].items():
+    for f in result["folds"].values():
         s = f["scores"]
         cells = [f"{s[m]['mae']:.4f}" for m in METHODS]
         best = int(np.argmin([s[m]["mae"] for m in METHODS]))

@@ -26,7 +26,6 @@ import inspect
 import json
 import logging
 import os
-import shutil
 import types
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -452,12 +451,8 @@ def ensure_synthetic(name: str, root: Path, *, size: str, seed: int, workers: in
                 f"{root} holds the synthetic layout {have}, not {want}; "
                 "remove it or choose another synthetic_root"
             )
-        if done.get("world", 1) == presets.WORLD_VERSION:
+        if not presets.discard_older_world(root, done):
             return root
-        # Our own output (the marker says so) from an older renderer: render it again.
-        log.warning("%s was rendered by synthetic world version %s; rendering version %s",
-                    root, done.get("world", 1), presets.WORLD_VERSION)
-        shutil.rmtree(root)
 
     log.info("rendering the synthetic %s world (%s) into %s", name, size, root)
     return generate(name, root, size=size, seed=seed, workers=workers)

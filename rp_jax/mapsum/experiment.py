@@ -57,7 +57,6 @@ import datetime as dt
 import json
 import logging
 import os
-import shutil
 import time
 import zoneinfo
 from collections.abc import Mapping, Sequence
@@ -163,12 +162,12 @@ def ensure_cmu_map_layout(
     root = Path(root)
     done = root / presets.SYNTHETIC_DIR / "generation.json"
     marker = root / presets.SYNTHETIC_DIR / "map_subset.json"
-    if done.is_file():
-        have = json.loads(done.read_text())
+    full = json.loads(done.read_text()) if done.is_file() else None
+    if full is not None:
         want = {"preset": "cmu_seasons", "size": size, "seed": seed}
-        if {k: have.get(k) for k in want} != want:
-            raise ValueError(f"{root} holds the synthetic layout {have}, not {want}")
-        if have.get("world", 1) == presets.WORLD_VERSION:
+        if {k: full.get(k) for k in want} != want:
+            raise ValueError(f"{root} holds the synthetic layout {full}, not {want}")
+        if full.get("world", 1) == presets.WORLD_VERSION:
             return root
     want_marker = {
         "size": size,
@@ -177,15 +176,10 @@ def ensure_cmu_map_layout(
         "query_dates": sorted(d.isoformat() for d in query_dates),
         "world": presets.WORLD_VERSION,
     }
-    if marker.is_file() and json.loads(marker.read_text()) == want_marker:
+    partial = json.loads(marker.read_text()) if marker.is_file() else None
+    if partial == want_marker:
         return root
-    old = json.loads(done.read_text()) if done.is_file() else (
-        json.loads(marker.read_text()) if marker.is_file() else None)
-    if old is not None and old.get("world", 1) != presets.WORLD_VERSION:
-        # Our own frames (a marker says so) from an older renderer: render them again.
-        log.warning("%s was rendered by synthetic world version %s; rendering version %s",
-                    root, old.get("world", 1), presets.WORLD_VERSION)
-        shutil.rmtree(root)
+    presets.discard_older_world(root, full if full is not None else partial)
     tz = zoneinfo.ZoneInfo(CMU_TIMEZONE)
     plan = presets.plan("cmu_seasons", root, size=size, seed=seed)
     slice_name = f"slice{slice_id}"

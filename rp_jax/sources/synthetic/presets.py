@@ -87,9 +87,10 @@ import json
 import logging
 import math
 import os
+import shutil
 import time
 import zoneinfo
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import cv2
@@ -1047,6 +1048,22 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not Linux
         return max(1, os.cpu_count() or 1)
+
+
+def discard_older_world(root: Path, marker: Mapping | None) -> bool:
+    """Delete ``root`` if its generation marker says an older ``WORLD_VERSION`` rendered it.
+
+    ``marker`` is the parsed marker (``generation.json`` or a partial render's marker; a
+    marker without ``"world"`` is version 1), None when there is none. The marker proves the
+    folder is this module's own output, so it is removed whole: the renderer skips frames
+    whose files exist and would otherwise keep the old pixels. Returns whether it deleted.
+    """
+    if marker is None or marker.get("world", 1) == WORLD_VERSION:
+        return False
+    log.warning("%s was rendered by synthetic world version %s; rendering version %s",
+                root, marker.get("world", 1), WORLD_VERSION)
+    shutil.rmtree(root)
+    return True
 
 
 def generate(

@@ -352,23 +352,17 @@ def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: in
         alpha = bool(two_sided[i])
         pyr = scene.textures.pyramid(quads.tex[i], state)
         area = None if needs_clip[j] else area_all[j]
-        if flutter is not None and quads.material[i] == Material.FOLIAGE:
-            # The whole box at once (a field continuous across strips), then displaced.
-            z = max(float(zc[i].mean()), NEAR)
-            warped = _warp(pyr, o[i], u[i], v[i], K, R, t, (x0, y0, x0 + bw, y0 + bh), pix, alpha, area)
-            rng = np.random.default_rng((scene.seed, int(i), flutter[0]))
-            warped = _flutter(warped, flutter[1] * K[0, 0] / z, FOLIAGE_CLUSTER_M * K[0, 0] / z, rng)
-            sm = m & np.greater(warped[..., 3], 127).view(np.uint8)
-            cv2.copyTo(iz, sm, zb[y0:y0 + bh, x0:x0 + bw])
-            cv2.copyTo(warped, sm, gb[y0:y0 + bh, x0:x0 + bw])
-            cv2.copyTo(np.full((bh, bw), i, np.int32), sm, qid[y0:y0 + bh, x0:x0 + bw])
-            drawn[i] = True
-            rois[i] = (x0, y0, x0 + bw, y0 + bh)
-            continue
-        for rx, ry, rw, rh in _visible_strips(m):
+        # Moving leaves are warped over the whole box at once: a displacement field
+        # continuous across strips.
+        moving = flutter is not None and quads.material[i] == Material.FOLIAGE
+        for rx, ry, rw, rh in [(0, 0, bw, bh)] if moving else _visible_strips(m):
             sm, siz = m[ry:ry + rh, rx:rx + rw], iz[ry:ry + rh, rx:rx + rw]
             sx0, sy0 = x0 + rx, y0 + ry
             warped = _warp(pyr, o[i], u[i], v[i], K, R, t, (sx0, sy0, sx0 + rw, sy0 + rh), pix, alpha, area)
+            if moving:
+                z = max(float(zc[i].mean()), NEAR)
+                rng = np.random.default_rng((scene.seed, int(i), flutter[0]))
+                warped = _flutter(warped, flutter[1] * K[0, 0] / z, FOLIAGE_CLUSTER_M * K[0, 0] / z, rng)
             if alpha:
                 sm = sm & np.greater(warped[..., 3], 127).view(np.uint8)  # (numpy: cv2 reads tiny arrays as scalars)
             cv2.copyTo(siz, sm, zb[sy0:sy0 + rh, sx0:sx0 + rw])
