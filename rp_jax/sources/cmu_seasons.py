@@ -10,6 +10,7 @@ Layout read (see ``DATA_FORMATS.md``)::
     <root>/slice{N}/database/img_<i>_<c0|c1>_<unix_us>us.jpg
     <root>/slice{N}/query/img_<i>_<c0|c1>_<unix_us>us.jpg
     <root>/slice{N}/ground-truth-database-images-slice{N}.txt   name qw qx qy qz cx cy cz
+    <root>/slice{N}/camera-poses/*.txt                      query ground truth, same format
     <root>/_evaluation/ground-truth-query-images-slice{N}.txt   optional, same format
     <root>/segmentation/slice{N}/<database|query>/<stem>.png    optional category maps
 
@@ -17,12 +18,20 @@ Layout read (see ``DATA_FORMATS.md``)::
   ``data_specs/cmu_seasons.json``).
 * Pose: the ground-truth quaternion is the world-to-camera rotation R and (cx, cy, cz) the
   camera centre C, so t = -R C (``pose_from_ground_truth``).
-* Query poses: real query poses are not public. A ground-truth file for the queries in the
-  same format is looked for at ``<root>/_evaluation/ground-truth-query-images-slice{N}.txt``
-  (the synthetic world writes it there) and then at
-  ``<root>/slice{N}/ground-truth-query-images-slice{N}.txt``. Queries without a pose cannot
-  be grouped into viewpoints: ``read`` drops and counts them; ``read_queries`` returns every
-  query (with a pose where known) for localization.
+* Query poses: the release ships the reference poses of about half of the queries in
+  ``slice{N}/camera-poses/*.txt`` (several files, some empty; read as kapture's importer
+  and pixloc's ``preprocess_cmu.py`` read them: every ``*.txt`` there). Also read, for
+  layouts written before the synthetic world wrote ``camera-poses/``:
+  ``<root>/_evaluation/ground-truth-query-images-slice{N}.txt`` and
+  ``<root>/slice{N}/ground-truth-query-images-slice{N}.txt`` (``read_query_ground_truth``
+  merges them all). Queries without a pose cannot be grouped into viewpoints: ``read``
+  drops and counts them; ``read_queries`` returns every query (R, t None where no pose is
+  known) for localization.
+* Names: ``img_<i>_<c0|c1>_<unix_us>us.jpg``; the original CMU Seasons' ``..._rect.jpg``
+  names are read too: those images are already undistorted (its README: PINHOLE with the
+  same fx fy cx cy), so their camera is the PINHOLE ``undistorted_camera`` of
+  ``intrinsics.txt``'s and ``load_image`` leaves their pixels as they are. Other ``.jpg``
+  and ``.png`` files are counted as having no capture time.
 * Pixels: ``load_image`` undistorts the OPENCV image to a PINHOLE camera with the same K and
   size; that camera is ``undistorted_camera(capture)`` (also ``capture.meta
   ["undistorted_camera"]``). ``capture.camera`` stays the camera of the file on disk.
@@ -59,15 +68,19 @@ from rp_jax.sources.layout import (
 
 __all__ = [
     "QUERY_GROUND_TRUTH_DIR",
+    "QUERY_POSES_DIR",
     "find_slices",
+    "is_rectified",
     "load_image",
     "parse_image_name",
     "pose_from_ground_truth",
     "quaternion_to_rotation",
+    "query_ground_truth_files",
     "read",
     "read_ground_truth",
     "read_intrinsics",
     "read_queries",
+    "read_query_ground_truth",
     "undistorted_camera",
 ]
 
@@ -75,8 +88,10 @@ log = logging.getLogger(__name__)
 
 DATASET = "Extended CMU Seasons"
 SPEC_NAME = "cmu_seasons"
-IMAGE_NAME = re.compile(r"^img_(\d+)_(c0|c1)_(\d+)us\.jpg$")
-QUERY_GROUND_TRUTH_DIR = "_evaluation"
+IMAGE_NAME = re.compile(r"^img_(\d+)_(c0|c1)_(\d+)us(_rect)?\.jpg$")
+_IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
+QUERY_POSES_DIR = "camera-poses"  # slice{N}/camera-poses/*.txt: the released query ground truth
+QUERY_GROUND_TRUTH_DIR = "_evaluation"  # older synthetic layouts
 _SLICE_DIR = re.compile(r"^slice(\d+)$")
 _EXPECTED = (
     "intrinsics.txt",
@@ -86,7 +101,7 @@ _EXPECTED = (
 
 
 def parse_image_name(name: str) -> tuple[int, str, int] | None:
-    """(index, camera id, UNIX microseconds) of an ``img_<i>_<c0|c1>_<us>us.jpg`` name."""
+    """(index, camera id, UNIX microseconds) of an ``img_<i>_<c0|c1>_<us>us[_rect].jpg`` name."""
     match = IMAGE_NAME.match(Path(name).name)
     if not match:
         return None
@@ -201,14 +216,49 @@ def _check_root(root: Path, slices: Sequence[int] | None) -> dict[int, Path]:
     return found
 
 
-def _query_ground_truth(root: Path, n: int) -> Path | None:
+def is_rectified(name: str) -> bool:
+    """Whether an image name is the original CMU Seasons' already undistorted ``..._rect.jpg``."""
+    match = IMAGE_NAME.match(Path(name).name)
+    return bool(match and match.group(4))
+
+
+def query_ground_truth_files(root: Path, n: int) -> list[Path]:
+    """The files holding slice ``n``'s query poses, in the order they are read.
+
+    ``slice{N}/camera-poses/*.txt`` (sorted), then the older places
+    ``_evaluation/ground-truth-query-images-slice{N}.txt`` and
+    ``slice{N}/ground-truth-query-images-slice{N}.txt`` where they exist.
+    """
+    root = Path(root)
+    slice_dir = root / f"slice{n}"
+    files = sorted(p for p in (slice_dir / QUERY_POSES_DIR).glob("*.txt") if p.is_file())
     for path in (
         root / QUERY_GROUND_TRUTH_DIR / f"ground-truth-query-images-slice{n}.txt",
-        root / f"slice{n}" / f"ground-truth-query-images-slice{n}.txt",
+        slice_dir / f"ground-truth-query-images-slice{n}.txt",
     ):
         if path.is_file():
-            return path
-    return None
+            files.append(path)
+    return files
+
+
+def read_query_ground_truth(root: Path, n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Query image name -> world-to-camera (R, t) for slice ``n``, from every file of
+    ``query_ground_truth_files`` (empty files are fine; a name posed twice keeps its
+    first pose, with a warning if the two differ)."""
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for path in query_ground_truth_files(root, n):
+        for name, (R, t) in read_ground_truth(path).items():
+            if name in out:
+                R0, t0 = out[name]
+                if not (np.allclose(R0, R, atol=1e-6) and np.allclose(t0, t, atol=1e-4)):
+                    log.warning(
+                        "%s: %s has another pose than in an earlier file; kept the first",
+                        path,
+                        name,
+                    )
+                continue
+            out[name] = (R, t)
+    return out
 
 
 def _slice_captures(
@@ -230,6 +280,10 @@ def _slice_captures(
     for path in tqdm(files, desc=f"cmu slice{n}/{kind}", leave=False, disable=None):
         parsed = parse_image_name(path.name)
         if parsed is None:
+            if path.suffix.lower() in _IMAGE_SUFFIXES:
+                counts.read += 1
+                counts.no_time += 1  # an image, but not named img_<i>_<c0|c1>_<us>us.jpg
+                log.debug("%s: not named img_<i>_<c0|c1>_<unix_us>us[_rect].jpg; skipped", path)
             continue  # not an image of the layout (e.g. a README)
         counts.read += 1
         _, cam_id, unix_us = parsed
@@ -247,11 +301,15 @@ def _slice_captures(
             log.warning("unreadable image %s; skipped", path)
             continue
         camera = cameras[cam_id]
+        rectified = is_rectified(path.name)
+        if rectified:  # already undistorted: the same K, no distortion
+            camera = images.undistorted_camera(camera)
         meta = {
             "slice": n,
             "kind": kind,
             "camera_id": cam_id,
             "unix_us": unix_us,
+            "rectified": rectified,
             "undistorted_camera": images.undistorted_camera(camera),
         }
         seg = segmentation_path(root, path)
@@ -290,7 +348,8 @@ def read(
       root: the dataset root holding ``intrinsics.txt`` and ``slice{N}/``.
       schedule: defaults to ``preset("cmu_seasons")`` (the paper's 12 dates).
       slices: slice numbers to read (all found if None), e.g. ``[6, 7, 9]``.
-      include_query: also read query images that have a ground-truth pose.
+      include_query: also read query images that have a ground-truth pose
+        (``read_query_ground_truth``: ``slice{N}/camera-poses/*.txt`` in the release).
       max_distance, max_angle_deg, min_group_size: viewpoint grouping
         (``viewpoints.group_by_pose``), per slice, on the ground-truth poses.
       cycle_rule: see ``layout``; ``"session_rank"`` gives the paper's M = 1.
@@ -324,8 +383,7 @@ def read(
             need_pose=True,
         )
         if include_query:
-            q_path = _query_ground_truth(root, n)
-            q_poses = read_ground_truth(q_path) if q_path else {}
+            q_poses = read_query_ground_truth(root, n)
             caps += _slice_captures(
                 root, n, slice_dir, "query", q_poses, cameras, tz_name, counts, need_pose=True
             )
@@ -359,6 +417,9 @@ def _with_viewpoint(capture: Capture, viewpoint: str) -> Capture:
 def read_queries(root: Path, *, slices: Sequence[int] | None = None) -> list[Capture]:
     """Every query image (for localization), with its pose where a ground truth exists.
 
+    About half of the released queries have a pose (``read_query_ground_truth``); the others
+    are returned too, with ``R`` and ``t`` None.
+
     Returns captures with viewpoint ``slice{N}/query`` and no cycle/slot, sorted by time.
     """
     root = Path(root)
@@ -368,8 +429,7 @@ def read_queries(root: Path, *, slices: Sequence[int] | None = None) -> list[Cap
     counts = ReadCounts(f"{DATASET} queries")
     out: list[Capture] = []
     for n, slice_dir in found.items():
-        q_path = _query_ground_truth(root, n)
-        q_poses = read_ground_truth(q_path) if q_path else {}
+        q_poses = read_query_ground_truth(root, n)
         out += _slice_captures(
             root, n, slice_dir, "query", q_poses, cameras, tz_name, counts, need_pose=False
         )

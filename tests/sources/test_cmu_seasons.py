@@ -165,3 +165,110 @@ def test_parse_image_name():
         1303398475046031,
     )
     assert cmu_seasons.parse_image_name("img_1_c2_5us.jpg") is None
+
+
+# --------------------------------------------------------------------------- the real release
+# Fixtures below are written as the dataset's README and the public tools that read it
+# describe the files (kapture's ``kapture_import_Extended_CMU_Seasons.py``, pixloc's
+# ``preprocess_cmu.py``), not by the project's synthetic writer.
+
+
+def _real_slice(root):
+    """slice7 as released: the reference traversal (Apr 4 2011) in ``database/`` with its
+    ground truth; queries of Sep 1 and Dec 21 2010 in ``query/``, listed in
+    ``test-images-slice7.txt``; the poses of half of them in ``camera-poses/*.txt`` (same
+    line format as the database file, spread over several files, one of them empty)."""
+    (root / "intrinsics.txt").write_text(INTRINSICS)
+    s = root / "slice7"
+    database, queries = [], []
+    i = 0
+    for when, out in [
+        ((2011, 4, 4, 11, 0), database),
+        ((2010, 9, 1, 13, 0), queries),
+        ((2010, 12, 21, 12, 0), queries),
+    ]:
+        for place in (0.0, 100.0):
+            for cam in ("c0", "c1"):
+                i += 1
+                C = (place + (cam == "c1"), 0.5 * (cam == "c1"), 0.0)
+                out.append((_name(i, cam, _us(*when) + i), C))
+    for name, _ in database:
+        _write_image(s / "database" / name)
+    for name, _ in queries:
+        _write_image(s / "query" / name)
+    (s / "ground-truth-database-images-slice7.txt").write_text(
+        "".join(_gt_line(n, R_EAST, C) for n, C in database)
+    )
+    (s / "test-images-slice7.txt").write_text("".join(f"{n}\n" for n, _ in queries))
+    posed = queries[::2]  # about half of the queries have a reference pose
+    (s / "camera-poses").mkdir()
+    (s / "camera-poses" / "poses_a.txt").write_text(_gt_line(*posed[0][:1], R_EAST, posed[0][1]))
+    (s / "camera-poses" / "poses_b.txt").write_text(
+        "".join(_gt_line(n, R_EAST, C) for n, C in posed[1:])
+    )
+    (s / "camera-poses" / "poses_c.txt").write_text("")  # some files are empty
+    return database, queries, posed
+
+
+def test_query_ground_truth_from_camera_poses(tmp_path, caplog):
+    database, queries, posed = _real_slice(tmp_path)
+    assert not (tmp_path / "_evaluation").exists()
+    with caplog.at_level(logging.INFO):
+        caps = cmu_seasons.read(tmp_path)
+    by_name = {c.image_path.name: c for c in caps}
+    # Every database image and every posed query; the unposed queries are counted.
+    assert set(by_name) == {n for n, _ in database} | {n for n, _ in posed}
+    assert "4 no pose" in caplog.text
+    # Seasonal variation: the reference date (Apr 4 -> the paper's Apr 21, slot 1) and the
+    # two query dates (Sep 01 -> 3, Dec 21 -> 11), where the reader alone gave one date.
+    assert {(c.time.month, c.slot) for c in caps} == {(4, 1), (9, 3), (12, 11)}
+    q = by_name[posed[1][0]]
+    np.testing.assert_allclose(q.center, posed[1][1], atol=1e-9)
+    assert q.meta["kind"] == "query"
+    # Queries join the viewpoints of the database images at the same place.
+    assert q.viewpoint == by_name[database[2][0]].viewpoint
+    # read_queries returns every query, posed or not (R None for the others).
+    out = cmu_seasons.read_queries(tmp_path)
+    assert sorted(c.image_path.name for c in out) == sorted(n for n, _ in queries)
+    have = {c.image_path.name for c in out if c.has_pose}
+    assert have == {n for n, _ in posed}
+    assert all(c.R is None and c.t is None for c in out if c.image_path.name not in have)
+
+
+def test_query_ground_truth_files_are_merged(tmp_path):
+    """``camera-poses/*.txt`` and the two older places are all read (layouts rendered before
+    the synthetic world wrote ``camera-poses/`` keep their query poses)."""
+    _, queries, posed = _real_slice(tmp_path)
+    extra = queries[1]
+    (tmp_path / "_evaluation").mkdir()
+    (tmp_path / "_evaluation" / "ground-truth-query-images-slice7.txt").write_text(
+        _gt_line(extra[0], R_EAST, extra[1])
+    )
+    poses = cmu_seasons.read_query_ground_truth(tmp_path, 7)
+    assert set(poses) == {n for n, _ in posed} | {extra[0]}
+    np.testing.assert_allclose(poses[extra[0]][1], -R_EAST @ np.array(extra[1]), atol=1e-12)
+
+
+def test_original_cmu_seasons_rect_names(tmp_path, caplog):
+    """The original CMU Seasons names its images ``img_<i>_<c0|c1>_<us>us_rect.jpg``: they
+    are already undistorted (its README: PINHOLE with the same fx fy cx cy), so they are
+    read with a PINHOLE camera and not undistorted again. A .jpg with another name is
+    counted, not silently skipped."""
+    (tmp_path / "intrinsics.txt").write_text(INTRINSICS)
+    s = tmp_path / "slice7"
+    names = [f"img_{i:05d}_c0_{_us(2011, 4, 4, 11, 0) + i}us_rect.jpg" for i in range(1, 4)]
+    for name in names:
+        _write_image(s / "database" / name)
+    _write_image(s / "database" / "thumbnail.jpg")
+    (s / "ground-truth-database-images-slice7.txt").write_text(
+        "".join(_gt_line(n, R_EAST, (0.5 * k, 0.0, 0.0)) for k, n in enumerate(names))
+    )
+    with caplog.at_level(logging.INFO):
+        caps = cmu_seasons.read(tmp_path)
+    assert sorted(c.image_path.name for c in caps) == names
+    assert "4 read" in caplog.text and "1 no time" in caplog.text
+    cap = caps[0]
+    assert cmu_seasons.parse_image_name(names[0])[1:] == ("c0", _us(2011, 4, 4, 11, 0) + 1)
+    assert cap.camera.model == "PINHOLE" and not np.any(cap.camera.distortion)
+    np.testing.assert_allclose(cap.camera.K[0], [50.0, 0.0, 31.5])
+    np.testing.assert_array_equal(cmu_seasons.load_image(cap), images.read_rgb(cap.image_path))
