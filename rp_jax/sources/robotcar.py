@@ -8,6 +8,8 @@ Layout read (see ``DATA_FORMATS.md``)::
 
     <root>/<YYYY-MM-DD-HH-MM-SS>/stereo/centre/<unix_us>.png    raw Bayer gbrg mosaics
     <root>/<YYYY-MM-DD-HH-MM-SS>/stereo.timestamps              <unix_us> <chunk>
+    <root>/<YYYY-MM-DD-HH-MM-SS>/mono_left/<unix_us>.png        (image_dir) raw Bayer rggb
+    <root>/<YYYY-MM-DD-HH-MM-SS>/mono_left.timestamps           (also mono_right, mono_rear)
     <root>/<YYYY-MM-DD-HH-MM-SS>/gps/ins.csv                    INS poses (or rtk.csv)
     <root>/models/stereo_narrow_left.txt                        fx fy cx cy + 4x4 G_camera_image
     <root>/models/stereo_narrow_left_distortion_lut.bin         optional undistortion LUT
@@ -15,21 +17,34 @@ Layout read (see ``DATA_FORMATS.md``)::
     <root>/viewpoints.csv                                       viewpoint,latitude,longitude,yaw_deg
     <root>/segmentation/<traversal>/stereo/centre/<ts>.png      optional category maps
 
-A root that is itself one traversal folder is read as that traversal. The SDK's ``models/``
-and ``extrinsics/`` folders can be given with ``models_dir``/``extrinsics_dir``.
+A root that is itself one traversal folder (holding any camera folder or ``gps/``) is read
+as that traversal. The SDK's ``models/`` and ``extrinsics/`` folders can be given with
+``models_dir``/``extrinsics_dir``.
 
-Conventions (the SDK's, written once here):
+Conventions (the SDK's, ``ori-mrg/robotcar-dataset-sdk`` python/, written once here):
+
+* Camera: the image folder picks it, as the SDK's ``camera_model.py`` does
+  (``camera_model_name``): ``stereo/centre`` -> ``stereo_narrow_left``, ``stereo/left`` ->
+  ``stereo_wide_left``, ``stereo/right`` -> ``stereo_wide_right``, ``mono_X`` -> ``mono_X``;
+  its timestamps are ``<traversal>/<stereo|mono_X>.timestamps`` and its extrinsics
+  ``extrinsics/<stereo|mono_X>.txt``. Bayer pattern (``image.py``): ``gbrg`` for the stereo
+  cameras, ``rggb`` for the mono ones (``bayer_pattern``).
 
 * Poses: the pose file gives the INS pose in a north-east-down world frame: position
   (northing, easting, down) in metres and R = Rz(yaw) Ry(pitch) Rx(roll) (radians), i.e.
   T_world_ins maps INS coordinates to world coordinates. It is interpolated at each image
   timestamp: position and latitude/longitude linearly, orientation by slerp; images outside
   the pose file's time span are dropped and counted.
-* Extrinsics ``extrinsics/<sensor>.txt`` (``x y z roll pitch yaw``) are T_vehicle_sensor,
-  the sensor's pose in the vehicle frame, as the SDK's ``build_pointcloud`` reads them. The
-  stereo camera *is* the vehicle frame in the SDK, so a missing ``stereo.txt`` is identity;
-  a missing ``ins.txt`` is taken as identity too (with a warning: give the SDK's
-  ``extrinsics/`` folder for metric-accurate camera poses).
+* Extrinsics ``extrinsics/<sensor>.txt`` (``x y z roll pitch yaw``, ``se3_from_xyzrpy``):
+  ``ins.txt`` (like the lidars') is T_vehicle_ins, the INS's pose in the vehicle frame, as
+  the SDK's ``build_pointcloud.py`` reads it. A *camera's* file is read as the SDK's
+  ``project_laser_into_camera.py`` reads it: the transform built from it is
+  ``G_camera_vehicle``, which maps vehicle-frame points into the camera, so the camera's
+  pose in the vehicle frame is its inverse (``read_camera_extrinsics``; the SDK's issue
+  threads found the mono files "the inverse of" a pose). The stereo camera *is* the
+  vehicle frame in the SDK, so a missing ``stereo.txt`` is identity; a missing ``ins.txt``
+  is taken as identity too (with a warning: give the SDK's ``extrinsics/`` folder for
+  metric-accurate camera poses).
 * ``G_camera_image`` maps the image (optical: x right, y down, z forward) frame to the
   camera (x forward, y right, z down) frame; missing, it is that axis permutation.
 * The camera's world-to-camera pose (OpenCV) is the inverse of
@@ -39,9 +54,10 @@ Conventions (the SDK's, written once here):
 * Slots: ``data_specs/robotcar.json`` ``traversal_slots`` (the paper's Table I) fixes the
   slot of the listed traversals; others use ``schedule.slot_of`` per image. Cycles use the
   ``"session_rank"`` rule with one session per traversal (M = 1 for Table I).
-* Pixels: ``load_image`` demosaics (gbrg) and, when the model's distortion LUT is present,
-  undistorts with it, so they follow ``capture.camera`` (PINHOLE fx fy cx cy). Without the
-  LUT the raw (slightly distorted) image is returned and ``meta["undistorted"]`` is False.
+* Pixels: ``load_image`` demosaics (``meta["bayer_pattern"]``) and, when the model's
+  distortion LUT is present, undistorts with it, so they follow ``capture.camera`` (PINHOLE
+  fx fy cx cy). Without the LUT the raw (slightly distorted) image is returned and
+  ``meta["undistorted"]`` is False.
 """
 
 from __future__ import annotations
@@ -74,13 +90,17 @@ from rp_jax.sources.layout import (
 
 __all__ = [
     "BAYER_PATTERN",
+    "BAYER_PATTERN_MONO",
     "DEFAULT_G_CAMERA_IMAGE",
+    "bayer_pattern",
+    "camera_model_name",
     "camera_pose",
     "euler_to_rotation",
     "find_traversals",
     "interpolate_poses",
     "load_image",
     "read",
+    "read_camera_extrinsics",
     "read_camera_model",
     "read_extrinsics",
     "read_pose_table",
@@ -92,8 +112,17 @@ log = logging.getLogger(__name__)
 
 DATASET = "Oxford RobotCar"
 SPEC_NAME = "robotcar"
-BAYER_PATTERN = "gbrg"  # stereo cameras; the mono cameras are rggb
+BAYER_PATTERN = "gbrg"  # the stereo cameras (the SDK's image.py BAYER_STEREO)
+BAYER_PATTERN_MONO = "rggb"  # mono_left, mono_right, mono_rear (BAYER_MONO)
 TRAVERSAL = re.compile(r"^\d{4}-\d{2}-\d{2}-\d{2}-\d{2}-\d{2}$")
+_SENSOR = re.compile(r"(stereo|mono_(left|right|rear))")
+_STEREO_MODELS = {
+    "centre": "stereo_narrow_left",
+    "left": "stereo_wide_left",
+    "right": "stereo_wide_right",
+}
+# Folders that make a folder named like a traversal a traversal.
+_TRAVERSAL_CONTENTS = ("stereo", "mono_left", "mono_right", "mono_rear", "gps", "vo")
 # Image (optical) frame -> camera frame (x forward, y right, z down).
 DEFAULT_G_CAMERA_IMAGE = np.array(
     [[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
@@ -101,11 +130,45 @@ DEFAULT_G_CAMERA_IMAGE = np.array(
 # Published stereo_narrow_left intrinsics (used, with a warning, if models/ is absent).
 STEREO_NARROW_LEFT = (964.828979, 964.828979, 643.788025, 484.407990)
 _POSE_COLUMNS = ("timestamp", "northing", "easting", "down", "roll", "pitch", "yaw")
-_EXPECTED = (
-    "YYYY-MM-DD-HH-MM-SS/stereo/centre/<ts>.png",
-    "YYYY-MM-DD-HH-MM-SS/stereo.timestamps",
-    "YYYY-MM-DD-HH-MM-SS/gps/ins.csv (or rtk.csv)",
-)
+
+
+def _expected(image_dir: str, sensor: str) -> tuple[str, ...]:
+    return (
+        f"YYYY-MM-DD-HH-MM-SS/{image_dir}/<ts>.png",
+        f"YYYY-MM-DD-HH-MM-SS/{sensor}.timestamps",
+        "YYYY-MM-DD-HH-MM-SS/gps/ins.csv (or rtk.csv)",
+    )
+
+
+def _sensor(image_dir: str) -> str:
+    """``stereo`` or ``mono_X``: the camera an image folder belongs to (the SDK's regex)."""
+    match = _SENSOR.search(str(image_dir))
+    if not match:
+        raise ValueError(
+            f"image_dir {image_dir!r} names no RobotCar camera; expected stereo/centre, "
+            "stereo/left, stereo/right, mono_left, mono_right or mono_rear"
+        )
+    return match.group(1)
+
+
+def camera_model_name(image_dir: str) -> str:
+    """The camera model an image folder's images use, as the SDK's ``CameraModel`` picks it.
+
+    ``stereo/centre`` -> ``stereo_narrow_left``, ``stereo/left`` -> ``stereo_wide_left``,
+    ``stereo/right`` -> ``stereo_wide_right``, ``mono_left|right|rear`` -> the same name.
+    """
+    sensor = _sensor(image_dir)
+    if sensor != "stereo":
+        return sensor
+    match = re.search(r"(left|centre|right)", str(image_dir)[str(image_dir).find("stereo") + 6 :])
+    if not match:
+        raise ValueError(f"image_dir {image_dir!r}: which stereo camera (centre, left, right)?")
+    return _STEREO_MODELS[match.group(1)]
+
+
+def bayer_pattern(image_dir: str) -> str:
+    """The Bayer pattern of an image folder's raw images: ``gbrg`` stereo, ``rggb`` mono."""
+    return BAYER_PATTERN if _sensor(image_dir) == "stereo" else BAYER_PATTERN_MONO
 
 
 def euler_to_rotation(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
@@ -128,9 +191,14 @@ def se3_from_xyzrpy(values: Sequence[float]) -> np.ndarray:
 
 
 def find_traversals(root: Path) -> dict[str, Path]:
-    """Traversal folder name -> path; the root itself if it is a traversal folder."""
+    """Traversal folder name -> path; the root itself if it is a traversal folder.
+
+    A folder named ``YYYY-MM-DD-HH-MM-SS`` holding any camera folder (``stereo/``,
+    ``mono_left|right|rear/``) or ``gps/``/``vo/`` is one traversal (a download may hold
+    only the mono cameras).
+    """
     root = Path(root)
-    if TRAVERSAL.match(root.name) and (root / "stereo").is_dir():
+    if TRAVERSAL.match(root.name) and any((root / d).is_dir() for d in _TRAVERSAL_CONTENTS):
         return {root.name: root}
     return {p.name: p for p in sorted(root.iterdir()) if p.is_dir() and TRAVERSAL.match(p.name)}
 
@@ -234,7 +302,12 @@ def read_camera_model(path: Path) -> tuple[tuple[float, float, float, float], np
 
 
 def read_extrinsics(path: Path) -> np.ndarray:
-    """T_vehicle_sensor (4x4) from an ``x y z roll pitch yaw`` file."""
+    """The 4x4 transform the SDK builds from an ``x y z roll pitch yaw`` file.
+
+    For ``ins.txt`` and the lidars' files it is T_vehicle_sensor (the sensor's pose in the
+    vehicle frame); for a camera's file the SDK uses it as ``G_camera_vehicle``: see
+    ``read_camera_extrinsics``.
+    """
     tokens = Path(path).read_text().split()
     if len(tokens) < 6:
         raise LayoutError(f"{path}: expected 'x y z roll pitch yaw', got {tokens}")
@@ -242,6 +315,17 @@ def read_extrinsics(path: Path) -> np.ndarray:
         return se3_from_xyzrpy([float(v) for v in tokens[:6]])
     except ValueError as err:
         raise LayoutError(f"{path}: non-numeric extrinsics {tokens}") from err
+
+
+def read_camera_extrinsics(path: Path) -> np.ndarray:
+    """T_vehicle_camera (the camera's pose in the vehicle frame) from ``extrinsics/<camera>.txt``.
+
+    The SDK's ``project_laser_into_camera.py`` builds ``G_camera_vehicle`` from the file and
+    maps vehicle-frame points into the camera with it; the camera's pose is its inverse.
+    With the SDK's ``mono_left.txt`` this puts the camera on the vehicle's left, looking
+    left; read as a pose, the file would put it on the right, looking right.
+    """
+    return np.linalg.inv(read_extrinsics(path))
 
 
 def camera_pose(
@@ -313,7 +397,7 @@ def read(
     traversals: Sequence[str] | None = None,
     models_dir: Path | None = None,
     extrinsics_dir: Path | None = None,
-    camera_name: str = "stereo_narrow_left",
+    camera_name: str | None = None,
     image_dir: str = "stereo/centre",
     pose_source: str = "auto",
     radius_m: float | None = None,
@@ -333,7 +417,11 @@ def read(
       traversals: only these traversal folder names.
       models_dir, extrinsics_dir: the SDK folders; default ``<root>/models`` and
         ``<root>/extrinsics`` (for a single-traversal root, its parent's).
-      camera_name, image_dir: camera model name and image folder within a traversal.
+      image_dir: the image folder within a traversal (``stereo/centre``, ``stereo/left``,
+        ``stereo/right``, ``mono_left``, ``mono_right``, ``mono_rear``); it picks the
+        timestamps file, the extrinsics file and the Bayer pattern.
+      camera_name: the camera model (``models/<camera_name>.txt``); default the one the
+        SDK picks for ``image_dir`` (``camera_model_name``).
       pose_source: ``"auto"`` (rtk.csv if found, else ins.csv), ``"rtk"`` or ``"ins"``.
       radius_m, max_yaw_deg: viewpoint membership; default the spec's 5 m and 45 deg.
       traversal_slots: folder -> slot overrides added to the spec's Table I.
@@ -352,6 +440,9 @@ def read(
     slots = {k: int(v) for k, v in spec.get("traversal_slots", {}).items() if k != "note"}
     slots.update(traversal_slots or {})
     tz = zone(spec.get("timezone", "Europe/London"))
+    sensor = _sensor(image_dir)
+    camera_name = camera_name or camera_model_name(image_dir)
+    pattern = bayer_pattern(image_dir)
 
     found = find_traversals(root)
     base = root.parent if found == {root.name: root} else root
@@ -368,16 +459,21 @@ def read(
             missing.append(f"{name}/{image_dir}/")
         if _pose_file(base, trav, pose_source) is None:
             missing.append(f"{name}/gps/ins.csv (or rtk.csv)")
-    require_layout(DATASET, root, _EXPECTED, missing)
+    require_layout(DATASET, root, _expected(image_dir, sensor), missing)
 
     models_dir = Path(models_dir) if models_dir else base / "models"
     extrinsics_dir = Path(extrinsics_dir) if extrinsics_dir else base / "extrinsics"
-    sensor = image_dir.split("/")[0]
-    T_vehicle_camera = (
-        read_extrinsics(extrinsics_dir / f"{sensor}.txt")
-        if (extrinsics_dir / f"{sensor}.txt").is_file()
-        else np.eye(4)
-    )
+    camera_extrinsics = extrinsics_dir / f"{sensor}.txt"
+    if camera_extrinsics.is_file():
+        T_vehicle_camera = read_camera_extrinsics(camera_extrinsics)
+    else:
+        if sensor != "stereo":  # the stereo camera is the vehicle frame; a mono one is not
+            log.warning(
+                "no %s; the %s camera is taken to sit at the vehicle origin",
+                camera_extrinsics,
+                sensor,
+            )
+        T_vehicle_camera = np.eye(4)
     if (extrinsics_dir / "ins.txt").is_file():
         T_vehicle_ins = read_extrinsics(extrinsics_dir / "ins.txt")
     else:
@@ -434,7 +530,8 @@ def read(
             meta = {
                 "traversal": name,
                 "timestamp_us": int(stamp),
-                "bayer_pattern": BAYER_PATTERN,
+                "bayer_pattern": pattern,
+                "camera_model": camera_name,
                 "pose_file": pose_path,
                 "distortion_lut": lut,
                 "undistorted": lut is not None,

@@ -153,3 +153,141 @@ def test_bad_layouts(tmp_path):
     (tmp_path / "2015-06-01-10-00-00" / "gps" / "ins.csv").unlink()
     with pytest.raises(LayoutError, match="2015-06-01-10-00-00/gps/ins.csv"):
         robotcar.read(tmp_path)
+
+
+# --------------------------------------------------------------------------- the SDK's conventions
+# Fixtures below are written as the Oxford RobotCar SDK (ori-mrg/robotcar-dataset-sdk)
+# reads the files: python/image.py (Bayer ``gbrg`` for stereo, ``rggb`` for mono),
+# python/camera_model.py (the image folder picks the model), python/transform.py and
+# python/project_laser_into_camera.py (``G_camera_vehicle`` built from
+# ``extrinsics/<camera>.txt``), not by the project's synthetic writer.
+
+# The SDK's extrinsics/mono_left.txt and mono_rear.txt, verbatim.
+SDK_MONO_LEFT = "-0.0905 1.6375 0.2803 0.2079 -0.2339 1.2321\n"
+SDK_MONO_REAR = "-2.0582 0.0894 0.3675 -0.0119 -0.2498 3.1283\n"
+INS_EXTRINSICS = "-1.7 0.1 1.2 -0.01 0.04 0.005\n"  # an INS behind the camera, as in the car
+
+
+def _sdk_se3(xyzrpy):
+    """transform.build_se3_transform: R = R_z R_y R_x, then the translation."""
+    x, y, z, r, p, w = xyzrpy
+    Rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+    Ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+    Rz = np.array([[np.cos(w), -np.sin(w), 0], [np.sin(w), np.cos(w), 0], [0, 0, 1]])
+    T = np.eye(4)
+    T[:3, :3] = Rz @ Ry @ Rx
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def _rggb(rgb):
+    """A raw mosaic as the mono cameras record it: R G / G B from the top-left pixel."""
+    raw = np.empty(rgb.shape[:2], np.uint8)
+    raw[0::2, 0::2] = rgb[0::2, 0::2, 0]
+    raw[0::2, 1::2] = rgb[0::2, 1::2, 1]
+    raw[1::2, 0::2] = rgb[1::2, 0::2, 1]
+    raw[1::2, 1::2] = rgb[1::2, 1::2, 2]
+    return raw
+
+
+def _red_scene():
+    y, x = np.mgrid[0:24, 0:32]
+    return np.stack([200 + 0 * x, 40 + 2 * y, 20 + x], -1).astype(np.uint8)
+
+
+def _mono_layout(root, cameras=("mono_left", "mono_rear")):
+    """One traversal with only mono cameras (no stereo/), the SDK's models/ and extrinsics/.
+
+    The vehicle heads north (yaw 0) at 1 m/s; frames at +0.5 s."""
+    name = "2014-12-16-09-14-09"
+    trav = root / name
+    (trav / "gps").mkdir(parents=True)
+    t0 = int(dt.datetime(2014, 12, 16, 9, 14, 9, tzinfo=dt.UTC).timestamp() * 1e6)
+    rows = [
+        f"{t0 + k * 1_000_000},INS_SOLUTION_GOOD,{LAT0 + np.rad2deg(k / EARTH_RADIUS_M):.10f},"
+        f"{LON0},100,{5700000.0 + k},620000.0,-100,30U,1,0,0,0,0,0\n"
+        for k in range(3)
+    ]
+    (trav / "gps" / "ins.csv").write_text(HEADER + "".join(rows))
+    stamp = t0 + 500_000
+    for cam in cameras:
+        (trav / cam).mkdir()
+        (trav / f"{cam}.timestamps").write_text(f"{stamp} 1\n")
+        cv2.imwrite(str(trav / cam / f"{stamp}.png"), _rggb(_red_scene()))
+    (root / "models").mkdir()
+    (root / "models" / "stereo_narrow_left.txt").write_text(
+        "964.828979 964.828979 643.788025 484.407990\n" + G
+    )
+    for cam in ("mono_left", "mono_right", "mono_rear"):
+        (root / "models" / f"{cam}.txt").write_text("400.000000 400.000000 15.5 11.5\n" + G)
+    (root / "models" / "stereo_wide_left.txt").write_text("500 500 15.5 11.5\n" + G)
+    (root / "extrinsics").mkdir()
+    (root / "extrinsics" / "mono_left.txt").write_text(SDK_MONO_LEFT)
+    (root / "extrinsics" / "mono_rear.txt").write_text(SDK_MONO_REAR)
+    (root / "extrinsics" / "ins.txt").write_text(INS_EXTRINSICS)
+    (root / "viewpoints.csv").write_text(
+        f"viewpoint,latitude,longitude,yaw_deg\nhere,{LAT0},{LON0},0\n"
+    )
+    return trav, stamp
+
+
+def test_mono_images_are_rggb(tmp_path):
+    _mono_layout(tmp_path)
+    (cap,) = robotcar.read(tmp_path, image_dir="mono_left")
+    img = robotcar.load_image(cap)
+    # A red scene comes back red (read as gbrg, red and blue are swapped).
+    assert np.abs(img[2:-2, 2:-2].astype(int) - _red_scene()[2:-2, 2:-2]).max() <= 4
+    assert cap.meta["bayer_pattern"] == "rggb"
+    assert robotcar.bayer_pattern("stereo/centre") == "gbrg"
+    assert robotcar.bayer_pattern("mono_right") == "rggb"
+
+
+def test_camera_model_follows_the_image_folder(tmp_path):
+    _mono_layout(tmp_path)
+    (cap,) = robotcar.read(tmp_path, image_dir="mono_rear")
+    assert cap.camera.K[0, 0] == 400.0  # models/mono_rear.txt, not stereo_narrow_left's 964.8
+    assert [
+        robotcar.camera_model_name(d)
+        for d in ("stereo/centre", "stereo/left", "stereo/right", "mono_left", "mono_rear")
+    ] == ["stereo_narrow_left", "stereo_wide_left", "stereo_wide_right", "mono_left", "mono_rear"]
+
+
+def test_mono_only_traversal_as_root(tmp_path):
+    trav, stamp = _mono_layout(tmp_path)
+    assert not (trav / "stereo").exists()
+    assert robotcar.find_traversals(trav) == {trav.name: trav}
+    (cap,) = robotcar.read(trav, image_dir="mono_left")
+    assert cap.meta["timestamp_us"] == stamp
+
+
+@pytest.mark.parametrize("camera", ["mono_left", "mono_rear"])
+def test_mono_extrinsics_as_the_sdk_projects(tmp_path, camera):
+    """A world point projects where the SDK's project_laser_into_camera.py puts it:
+    X_camera = G_camera_vehicle @ G_vehicle_ins @ inv(T_world_ins) @ X_world, with
+    G_camera_vehicle = build_se3_transform(extrinsics/<camera>.txt), then the pinhole
+    model after inv(G_camera_image) (camera_model.py ``project``)."""
+    _mono_layout(tmp_path)
+    # The model named explicitly, so that only the extrinsics are under test here.
+    (cap,) = robotcar.read(tmp_path, image_dir=camera, camera_name=camera)
+    extr = [float(v) for v in (SDK_MONO_LEFT if camera == "mono_left" else SDK_MONO_REAR).split()]
+    G_camera_vehicle = _sdk_se3(extr)
+    G_vehicle_ins = _sdk_se3([float(v) for v in INS_EXTRINSICS.split()])
+    T_world_ins = _sdk_se3([5700000.5, 620000.0, -100.0, 0.0, 0.0, 0.0])  # ins.csv at +0.5 s
+    G_camera_image = np.array([[float(v) for v in ln.split()] for ln in G.splitlines()])
+    # Points 8 m in front of the camera, spread over the image.
+    for x_img in ([0.0, 0.0, 8.0], [2.0, 1.0, 8.0], [-3.0, -1.5, 6.0]):
+        X_camera = G_camera_image @ np.array([*x_img, 1.0])
+        X_world = T_world_ins @ np.linalg.inv(G_camera_vehicle @ G_vehicle_ins) @ X_camera
+        # The SDK's projection of X_world:
+        xyzw = np.linalg.solve(
+            G_camera_image, G_camera_vehicle @ G_vehicle_ins @ np.linalg.inv(T_world_ins) @ X_world
+        )
+        uv_sdk = 400.0 * xyzw[:2] / xyzw[2] + [15.5, 11.5]
+        x = cap.camera.K @ (cap.R @ X_world[:3] + cap.t)
+        np.testing.assert_allclose(x[:2] / x[2], uv_sdk, atol=1e-6)
+    # Heading north, mono_left looks west-ish (left) and mono_rear south (backwards).
+    forward = cap.R[2]  # the optical axis in world (north, east, down) coordinates
+    if camera == "mono_left":
+        assert forward[1] < -0.5
+    else:
+        assert forward[0] < -0.5
