@@ -8,19 +8,33 @@ Layout read (see ``DATA_FORMATS.md``; the nesting is UNVERIFIED, so both are acc
     <root>/<scene>/YYYYMMDD_HHMMSS.jpg          or   <root>/images/<scene>/YYYYMMDD_HHMMSS.jpg
     <root>/<scene>/YYYYMMDD_HHMMSS.mat          optional, sunZenith / sunAzimuth -> meta
     <root>/<scene>/metadata.csv                 optional ``name,datetime`` time override
-    <root>/<scene>/scene.json                   optional {"timezone", "latitude", "longitude"}
+    <root>/<scene>/scene.json                   optional {"timezone", "name_timezone",
+                                                          "latitude", "longitude"}
     <root>/segmentation/<scene>/<stem>.png      optional category map (rp_jax.categories)
 
 * Images: ``.jpg``, ``.jpeg`` or ``.png`` (any case) directly in the scene folder whose name
   contains ``YYYYMMDD_HHMMSS``. A root that itself holds such images is read as one scene.
-* Capture time: from the file name, on the camera's local wall clock. A scene's
-  ``metadata.csv`` (or, if there is none, the scene's only ``*.csv``) with columns
-  ``name,datetime`` (header optional; ``name`` is the file name or its stem; ``datetime``
-  ISO 8601, or ``YYYYMMDD_HHMMSS``) overrides the file-name time of the images it lists;
-  a datetime with a UTC offset is converted to the scene's zone.
-* Time zone: ``scene.json``'s ``timezone`` (the synthetic world writes it), else the
-  reader's ``timezone`` option, else ``data_specs/webcam_clipart.json``'s
-  ``default_timezone``. ``latitude``/``longitude`` from ``scene.json`` go to ``meta``.
+* Two clocks: the file names are written on one zone, the *name zone* (US/Eastern in the
+  author's sample, with daylight saving, whatever the camera's zone; UTC in AMOS), and the
+  slots are read on the camera's own wall clock ("a webcam's 8:00 is 8:00 where it is").
+  A name is read on the name zone and converted to the camera's zone.
+* Name zone: ``scene.json``'s ``name_timezone``, else the reader's ``name_timezone``
+  option, else ``data_specs/webcam_clipart.json``'s ``default_name_timezone`` (the author's
+  US/Eastern). A ``scene.json`` written by the synthetic world before it wrote
+  ``name_timezone`` (it has a ``"synthetic"`` key) had its names on the camera's clock.
+* Camera zone: ``scene.json``'s ``timezone``, else the reader's ``timezone`` option, else
+  ``data_specs/webcam_clipart.json``'s ``default_timezone``. ``latitude``/``longitude``
+  from ``scene.json`` go to ``meta``.
+* Time override: a scene's ``metadata.csv`` (or, if there is none, the scene's only
+  ``*.csv``) with columns ``name,datetime`` (header optional; ``name`` is the file name or
+  its stem; ``datetime`` ISO 8601, or ``YYYYMMDD_HHMMSS``, on the camera's clock unless it
+  carries a UTC offset) overrides the file-name time of the images it lists.
+* Sun angles: a frame's ``.mat`` is read whether MATLAB v7.3 (HDF5, read with h5py: the
+  author's files, ``sunZenith``/``sunAzimuth`` in radians) or v5 (``scipy.io.loadmat``,
+  degrees, as this project wrote them before); ``meta["sunZenith"]``/``["sunAzimuth"]`` are
+  in degrees whatever the file held (azimuth sign as in the file). Where a scene has
+  latitude/longitude, the zenith angles are compared with the sun computed at the times
+  read (``check_sun_angles``) and the rms logged: a warning says the names' clock is off.
 * Camera: no calibration is published; a PINHOLE guess with focal = image width
   (``images.pinhole_guess``). Only pixel positions matter for a static camera.
 * Slots: ``preset("webcam_clipart")``, cycles = calendar days renumbered per scene; by
@@ -30,6 +44,7 @@ Layout read (see ``DATA_FORMATS.md``; the nesting is UNVERIFIED, so both are acc
 from __future__ import annotations
 
 import csv
+import dataclasses
 import datetime as dt
 import json
 import logging
@@ -54,7 +69,18 @@ from rp_jax.sources.layout import (
     zone,
 )
 
-__all__ = ["METADATA_CSV", "SCENE_JSON", "find_scenes", "load_image", "parse_name_time", "read"]
+__all__ = [
+    "METADATA_CSV",
+    "SCENE_JSON",
+    "SUN_AGREEMENT_DEG",
+    "SunCheck",
+    "check_sun_angles",
+    "find_scenes",
+    "load_image",
+    "parse_name_time",
+    "read",
+    "read_sun_angles",
+]
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +96,9 @@ _EXPECTED = (
     "(.jpg, .jpeg or .png)",
 )
 _NOT_SCENES = {categories.SEGMENTATION_DIR, "images"}
+# Sun zenith angles from the files that agree with the computed sun within this rms (deg)
+# confirm the clock the names were read on; more is logged as a warning.
+SUN_AGREEMENT_DEG = 1.0
 
 
 def parse_name_time(name: str) -> dt.datetime | None:
@@ -194,17 +223,32 @@ def _scene_info(scene_dir: Path) -> dict:
     return info
 
 
-def _sun_angles(mat_path: Path) -> dict[str, float]:
-    """``sunZenith``/``sunAzimuth`` from a frame's ``.mat``, top level or one struct deep."""
+_SUN_KEYS = ("sunZenith", "sunAzimuth")
+
+
+def _mat_v73_scalars(mat_path: Path) -> dict[str, float]:
+    """``sunZenith``/``sunAzimuth`` of a MATLAB v7.3 (HDF5) file, top level or one struct deep."""
+    import h5py
+
+    out: dict[str, float] = {}
+    with h5py.File(mat_path, "r") as f:
+        groups = [f] + [v for v in f.values() if isinstance(v, h5py.Group)]
+        for key in _SUN_KEYS:
+            for group in groups:
+                node = group.get(key)
+                if isinstance(node, h5py.Dataset):
+                    out[key] = float(np.asarray(node[()], dtype=np.float64).reshape(-1)[0])
+                    break
+    return out
+
+
+def _mat_v5_scalars(mat_path: Path) -> dict[str, float]:
+    """``sunZenith``/``sunAzimuth`` of a MATLAB v5 file, top level or one struct deep."""
     import scipy.io
 
-    try:
-        data = scipy.io.loadmat(str(mat_path), squeeze_me=True, struct_as_record=False)
-    except Exception as err:  # noqa: BLE001 - a bad .mat only loses the sun angles
-        log.warning("cannot read %s (%s); no sun angles for this frame", mat_path, err)
-        return {}
+    data = scipy.io.loadmat(str(mat_path), squeeze_me=True, struct_as_record=False)
     out: dict[str, float] = {}
-    for key in ("sunZenith", "sunAzimuth"):
+    for key in _SUN_KEYS:
         value = data.get(key)
         if value is None:
             for v in data.values():
@@ -212,11 +256,145 @@ def _sun_angles(mat_path: Path) -> dict[str, float]:
                     value = getattr(v, key)
                     break
         if value is not None:
-            try:
-                out[key] = float(np.asarray(value, dtype=np.float64).reshape(-1)[0])
-            except (TypeError, ValueError, IndexError):
-                log.warning("%s: %s is not a number", mat_path, key)
+            out[key] = float(np.asarray(value, dtype=np.float64).reshape(-1)[0])
     return out
+
+
+def read_sun_angles(mat_path: Path) -> dict:
+    """The sun angles of a frame's ``.mat``, in degrees, whichever MATLAB version wrote it.
+
+    MATLAB v7.3 files (HDF5; the author's release) hold radians and are read with h5py;
+    v5 files (``scipy.io.loadmat``) hold degrees. An unreadable file only loses the angles
+    (a warning says why).
+
+    Returns:
+      ``{"sunZenith": deg, "sunAzimuth": deg, "sun_angles_file": "mat-v7.3" | "mat-v5"}``
+      with whichever angles the file has, or ``{}``.
+    """
+    import scipy.io.matlab
+
+    mat_path = Path(mat_path)
+    try:
+        major, _ = scipy.io.matlab.matfile_version(str(mat_path))
+    except Exception as err:  # noqa: BLE001 - a bad .mat only loses the sun angles
+        log.warning("cannot read %s (%s); no sun angles for this frame", mat_path, err)
+        return {}
+    try:
+        if major == 2:
+            values, units, kind = _mat_v73_scalars(mat_path), "rad", "mat-v7.3"
+        else:
+            values, units, kind = _mat_v5_scalars(mat_path), "deg", "mat-v5"
+    except ImportError as err:
+        log.warning("%s is MATLAB v7.3 (HDF5): install h5py to read it (%s)", mat_path, err)
+        return {}
+    except Exception as err:  # noqa: BLE001 - a bad .mat only loses the sun angles
+        log.warning("cannot read %s (%s); no sun angles for this frame", mat_path, err)
+        return {}
+    out: dict = {}
+    for key, value in values.items():
+        if not np.isfinite(value):
+            log.warning("%s: %s is not a number", mat_path, key)
+            continue
+        out[key] = float(np.degrees(value)) if units == "rad" else value
+    if out:
+        out["sun_angles_file"] = kind
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class SunCheck:
+    """How well a scene's sun angles fit the sun computed at its capture times.
+
+    Only zenith angles are compared: the sign convention of the author's azimuths is
+    unverified (they look like minus the compass azimuth), the zenith has none.
+
+    Attributes:
+      scene: the scene (viewpoint) name.
+      frames: frames with a sun zenith angle and a known location.
+      rms_deg: rms of (file zenith - computed zenith) at the times read, in degrees.
+      best_shift_hours: the shift of all times (half-hour steps within +-12 h) whose rms is
+        smallest; 0 when the times read fit best. A non-zero shift means the names were
+        read on the wrong clock (e.g. -3 for US/Eastern names read as Arizona time).
+      best_rms_deg: the rms at that shift.
+    """
+
+    scene: str
+    frames: int
+    rms_deg: float
+    best_shift_hours: float
+    best_rms_deg: float
+
+    @property
+    def agrees(self) -> bool:
+        """Whether the times read agree with the sun angles (rms within SUN_AGREEMENT_DEG)."""
+        return self.rms_deg <= SUN_AGREEMENT_DEG
+
+
+def check_sun_angles(captures: Sequence[Capture]) -> dict[str, SunCheck]:
+    """Compare each frame's sun zenith angle (from its ``.mat``) with the sun at its time.
+
+    Args:
+      captures: captures of ``read`` (any subset); those without ``meta["sunZenith"]`` or
+        without ``meta["latitude"]``/``["longitude"]`` are ignored.
+
+    Returns:
+      Scene -> ``SunCheck`` for every scene with at least one comparable frame.
+    """
+    from rp_jax.sources.synthetic import sun  # NOAA solar position, pure NumPy
+
+    by_scene: dict[str, list[Capture]] = {}
+    for c in captures:
+        if "sunZenith" in c.meta and "latitude" in c.meta and "longitude" in c.meta:
+            by_scene.setdefault(str(c.viewpoint), []).append(c)
+    shifts = np.arange(-24, 25) * 0.5
+    out: dict[str, SunCheck] = {}
+    for scene, caps in by_scene.items():
+        lat, lon = float(caps[0].meta["latitude"]), float(caps[0].meta["longitude"])
+        times = np.array([sun.unix_seconds(c.time) for c in caps])
+        zenith_file = np.array([c.meta["sunZenith"] for c in caps])
+        elevation, _ = sun.solar_position(times[None, :] + shifts[:, None] * 3600.0, lat, lon)
+        rms = np.sqrt(np.mean((zenith_file[None, :] - (90.0 - elevation)) ** 2, axis=1))
+        zero = int(np.flatnonzero(shifts == 0)[0])
+        best = int(np.argmin(rms)) if rms.min() < rms[zero] - 1e-9 else zero
+        out[scene] = SunCheck(
+            scene, len(caps), float(rms[zero]), float(shifts[best]), float(rms[best])
+        )
+    return out
+
+
+def _log_sun_checks(captures: Sequence[Capture], name_zones: Mapping[str, str]) -> None:
+    with_angles = {str(c.viewpoint) for c in captures if "sunZenith" in c.meta}
+    checks = check_sun_angles(captures) if with_angles else {}
+    for scene in sorted(with_angles):
+        check = checks.get(scene)
+        if check is None:
+            log.info(
+                "%s: frames have sun angles but the scene has no latitude/longitude "
+                "(scene.json): the file names' clock is not checked",
+                scene,
+            )
+        elif check.agrees:
+            log.info(
+                "%s: the sun zenith angles of %d frames agree with the times read from the "
+                "file names on the %s clock (rms %.2f deg)",
+                scene,
+                check.frames,
+                name_zones[scene],
+                check.rms_deg,
+            )
+        else:
+            log.warning(
+                "%s: the sun zenith angles of %d frames differ from the sun at the times read "
+                "from the file names on the %s clock by rms %.2f deg; shifting the times by "
+                "%+.1f h fits best (rms %.2f deg): give the zone the names are written in "
+                "(name_timezone)",
+                scene,
+                check.frames,
+                name_zones[scene],
+                check.rms_deg,
+                check.best_shift_hours,
+                check.best_rms_deg,
+            )
 
 
 def read(
@@ -225,6 +403,7 @@ def read(
     schedule: TimeSchedule | None = None,
     scenes: Sequence[str] | None = None,
     timezone: str | Mapping[str, str] | None = None,
+    name_timezone: str | Mapping[str, str] | None = None,
     one_per_slot: bool = True,
 ) -> list[Capture]:
     """Read a Webcam Clip Art layout into captures assigned to (cycle, slot).
@@ -233,10 +412,16 @@ def read(
       root: the dataset root (either nesting, or a single scene folder).
       schedule: defaults to ``preset("webcam_clipart")`` (21 slots, 8:00-18:00).
       scenes: only these scene names (all found if None); an unknown name raises.
-      timezone: zone for scenes without ``scene.json`` (one name, or scene -> name).
+      timezone: the camera's zone for scenes whose ``scene.json`` gives none (one IANA
+        name, or scene -> name); slots are read on this wall clock.
+      name_timezone: the zone the file names are written in, for scenes whose
+        ``scene.json`` gives none (default ``data_specs``' US/Eastern of the author's
+        release; ``"UTC"`` for AMOS).
       one_per_slot: keep only the frame nearest each timestamp per (scene, day).
 
-    Every file's header is read (cheap); unreadable files are dropped and counted.
+    Every file's header is read (cheap); unreadable files are dropped and counted. Where
+    frames carry sun angles, they are checked against the times read (``check_sun_angles``,
+    logged; a warning when they disagree).
 
     Returns:
       Captures sorted by (scene, time), viewpoint = scene name, cycles 0..M-1 per scene.
@@ -249,8 +434,11 @@ def read(
         if unknown:
             raise LayoutError(f"{root}: scenes {unknown} not found; found {sorted(found)}")
         found = {name: found[name] for name in scenes}
-    default_zone = load_spec(SPEC_NAME).get("default_timezone", "UTC")
+    spec = load_spec(SPEC_NAME)
+    default_zone = spec.get("default_timezone", "UTC")
+    default_name_zone = spec.get("default_name_timezone", default_zone)
     counts = ReadCounts(DATASET)
+    name_zones: dict[str, str] = {}
     cameras: dict[tuple[int, int], Camera] = {}
     captures: list[Capture] = []
     for scene, scene_dir in found.items():
@@ -261,6 +449,15 @@ def read(
             or default_zone
         )
         tz = zone(zone_name)
+        name_zone_name = (
+            info.get("name_timezone")
+            or (name_timezone.get(scene) if isinstance(name_timezone, Mapping) else name_timezone)
+            # The synthetic world wrote its names on the camera's clock before it said so.
+            or (zone_name if "synthetic" in info else None)
+            or default_name_zone
+        )
+        name_tz = zone(name_zone_name)
+        name_zones[scene] = name_zone_name
         csv_path = _metadata_csv(scene_dir)
         overrides = _read_time_overrides(csv_path, tz) if csv_path else {}
         for path in tqdm(
@@ -275,20 +472,25 @@ def read(
                     counts.no_time += 1
                     log.debug("%s: no YYYYMMDD_HHMMSS in the name and not in %s", path, csv_path)
                     continue
-                when = naive.replace(tzinfo=tz)
+                when = naive.replace(tzinfo=name_tz).astimezone(tz)
             size = images.probe_size(path)
             if size is None:
                 counts.unreadable += 1
                 log.warning("unreadable image %s; skipped", path)
                 continue
             camera = cameras.setdefault(size, images.pinhole_guess(*size))
-            meta: dict = {"scene": scene, "time_source": source, "timezone": zone_name}
+            meta: dict = {
+                "scene": scene,
+                "time_source": source,
+                "timezone": zone_name,
+                "name_timezone": name_zone_name,
+            }
             for key in ("latitude", "longitude"):
                 if key in info:
                     meta[key] = float(info[key])
             mat = path.with_suffix(".mat")
             if mat.is_file():
-                meta.update(_sun_angles(mat))
+                meta.update(read_sun_angles(mat))
             seg = segmentation_path(root, path, Path(scene) / f"{path.stem}.png")
             if seg is not None:
                 meta["segmentation_path"] = seg
@@ -302,6 +504,7 @@ def read(
                     meta=meta,
                 )
             )
+    _log_sun_checks(captures, name_zones)
     assigned = assign_slots(captures, schedule, cycle_rule="calendar", counts=counts)
     if one_per_slot:
         assigned = keep_nearest_per_slot(assigned, schedule, counts)

@@ -84,8 +84,16 @@ def test_keep_all_frames_in_a_slot(tmp_path):
 def test_scene_json_timezone_and_csv_override(tmp_path):
     scene = tmp_path / "s"
     _scene(scene, ["20100601_080000", "20100601_090000", "frame_without_time"])
+    # Names on the camera's own clock: the sidecar says so (the default is data_specs').
     (scene / "scene.json").write_text(
-        json.dumps({"timezone": "Europe/Paris", "latitude": 48.8, "longitude": 2.3})
+        json.dumps(
+            {
+                "timezone": "Europe/Paris",
+                "name_timezone": "Europe/Paris",
+                "latitude": 48.8,
+                "longitude": 2.3,
+            }
+        )
     )
     (scene / "metadata.csv").write_text(
         "name,datetime\n20100601_090000.jpg,2010-06-03 10:30:00\n"
@@ -151,3 +159,97 @@ def test_single_scene_root(tmp_path):
     _scene(tmp_path, ["20100601_080000"])
     (cap,) = webcam_clipart.read(tmp_path)
     assert cap.viewpoint == tmp_path.name
+
+
+# --------------------------------------------------------------------------- the author's files
+# Fixtures below are written as the author's own per-frame files are: MATLAB v7.3 (HDF5
+# with MATLAB's 512-byte header) holding top-level ``sunZenith``/``sunAzimuth`` in radians
+# (the azimuth apparently minus the compass azimuth), names on a clock that need not be the
+# camera's (US/Eastern in the author's sample, UTC in AMOS). Not the synthetic writer.
+
+
+def _mat73(path, **scalars):
+    """Write a MATLAB v7.3 .mat as MATLAB does: an HDF5 file behind a 512-byte header,
+    each double a (1, 1) dataset with a ``MATLAB_class`` attribute."""
+    h5py = pytest.importorskip("h5py")
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for key, value in scalars.items():
+            ds = f.create_dataset(key, data=np.array([[float(value)]]))
+            ds.attrs["MATLAB_class"] = np.bytes_("double")
+    text = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jun  1 12:00:00 2015 HDF5 schema 1.00 ."
+    header = text.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02" + b"IM"
+    with open(path, "r+b") as f:
+        f.write(header.ljust(512, b"\x00"))
+
+
+def test_sun_angles_from_matlab_v73(tmp_path):
+    _scene(tmp_path / "s", ["20100601_120000"])
+    _mat73(tmp_path / "s" / "20100601_120000.mat", sunZenith=0.5, sunAzimuth=-3.0)
+    with pytest.raises(NotImplementedError):
+        scipy.io.loadmat(str(tmp_path / "s" / "20100601_120000.mat"))  # why h5py is needed
+    (cap,) = webcam_clipart.read(tmp_path)
+    assert cap.meta["sunZenith"] == pytest.approx(np.degrees(0.5))  # degrees in meta
+    assert cap.meta["sunAzimuth"] == pytest.approx(np.degrees(-3.0))
+    assert cap.meta["sun_angles_file"] == "mat-v7.3"
+
+
+PHOENIX = (33.45, -112.07)
+
+
+def _arizona_scene(root):
+    """A camera in Arizona (no daylight saving) whose frames are named on a US/Eastern clock
+    (EDT in June: 3 h ahead), as in the author's sample; each frame has its sun angles."""
+    pvlib = pytest.importorskip("pvlib")
+    import pandas as pd
+
+    az = zoneinfo.ZoneInfo("America/Phoenix")
+    ny = zoneinfo.ZoneInfo("America/New_York")
+    local = [
+        dt.datetime(2010, 6, 1, h, m, tzinfo=az)
+        for h, m in [(5, 35), (8, 0), (10, 30), (13, 0), (16, 0), (17, 30)]
+    ]
+    scene = root / "az"
+    names = [w.astimezone(ny).strftime("%Y%m%d_%H%M%S") for w in local]
+    _scene(scene, names)
+    sun = pvlib.solarposition.get_solarposition(
+        pd.DatetimeIndex([w.astimezone(dt.UTC) for w in local]), *PHOENIX
+    )
+    for name, zen, azi in zip(names, sun["zenith"], sun["azimuth"]):
+        _mat73(scene / f"{name}.mat", sunZenith=np.radians(zen), sunAzimuth=-np.radians(azi))
+    (scene / "scene.json").write_text(
+        json.dumps({"timezone": "America/Phoenix", "latitude": PHOENIX[0], "longitude": PHOENIX[1]})
+    )
+    return local, names
+
+
+def test_name_clock_is_not_the_camera_clock(tmp_path, caplog):
+    local, names = _arizona_scene(tmp_path)
+    assert names[0] == "20100601_083500"  # a sunrise frame (zenith ~88 deg) named 08:35
+    with caplog.at_level(logging.INFO):
+        caps = webcam_clipart.read(tmp_path)  # names on data_specs' US/Eastern clock
+    by_name = {c.image_path.stem: c for c in caps}
+    # The sunrise frame is 05:35 at the camera: no slot (not the 08:30 slot).
+    assert names[0] not in by_name
+    assert by_name[names[1]].time == local[1] and by_name[names[1]].slot == 0  # 08:00 slot
+    assert by_name[names[1]].time.utcoffset() == dt.timedelta(hours=-7)
+    assert by_name[names[1]].meta["name_timezone"] == "America/New_York"
+    # The sun angles agree with the sun at the times read.
+    (check,) = webcam_clipart.check_sun_angles(caps).values()
+    assert check.frames == len(caps) and check.rms_deg < 0.1
+    assert "rms" in caplog.text and "WARNING" not in caplog.text
+
+
+def test_wrong_name_clock_is_reported(tmp_path, caplog):
+    _arizona_scene(tmp_path)
+    with caplog.at_level(logging.INFO):
+        caps = webcam_clipart.read(tmp_path, name_timezone="America/Phoenix", one_per_slot=False)
+    (check,) = webcam_clipart.check_sun_angles(caps).values()
+    assert check.rms_deg > 10.0
+    assert check.best_shift_hours == pytest.approx(-3.0) and check.best_rms_deg < 0.1
+    warning = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert warning and "rms" in warning[0].getMessage()
+    # UTC names (AMOS) read with name_timezone="UTC".
+    root = tmp_path / "amos"
+    _scene(root / "cam", ["20100601_150000"])
+    (cap,) = webcam_clipart.read(root, timezone="America/Phoenix", name_timezone="UTC")
+    assert cap.time == dt.datetime(2010, 6, 1, 8, 0, tzinfo=zoneinfo.ZoneInfo("America/Phoenix"))
