@@ -1,4 +1,4 @@
-"""Figures of repeatability curves (Figs. 6, 7/8 and 9 of the paper).
+"""Figures of repeatability curves (Figs. 6, 7/8 and 9) and of map summarization (Fig. 11).
 
 Fig. 6: the average repeatability function over all samples of a split, x = the T
 timestamps of the cycle (``TimeSchedule.labels``: ``"08:00"`` ... or ``"Mar 04"`` ...).
@@ -21,6 +21,7 @@ import numpy as np
 
 __all__ = [
     "experiment_figures",
+    "plot_accuracy_vs_pruning",
     "plot_average_curves",
     "plot_category_curves",
     "plot_examples",
@@ -355,4 +356,77 @@ def plot_own_date_contrast(
         ax.legend(loc="upper right", fontsize="small")
     fig.suptitle(title)
     fig.tight_layout()
+    return save_figure(fig, out)
+
+
+# Fig. 11 (map summarization): colour and marker per method; oracles dashed.
+_FIG11_STYLES = {
+    "rp": ("tab:red", "o", "-"),
+    "rp_paper": ("tab:orange", "o", "-"),
+    "kcover": ("tab:blue", "s", "-"),
+    "random": ("tab:gray", "^", "-"),
+    "most_observed": ("tab:green", "D", "-"),
+    "rp_kcover": ("tab:purple", "v", "-"),
+    "oracle_agnostic": ("black", "x", "--"),
+    "oracle_date": ("tab:brown", "*", "--"),
+}
+
+
+def plot_accuracy_vs_pruning(
+    accuracy: Mapping[str, Mapping[str, Mapping[str, float]]],
+    out: str | Path,
+    *,
+    intervals: Mapping[str, Mapping[str, Mapping[str, Sequence[float]]]] | None = None,
+    full_map: Mapping[str, float] | None = None,
+    thresholds: Sequence[str] = ("5m_10deg",),
+    labels: Mapping[str, str] | None = None,
+    title: str | None = None,
+) -> Path:
+    """Fig. 11: localization accuracy vs. percentage of pruned 3D points, one line per method.
+
+    Args:
+      accuracy: ``{method: {ratio: {threshold key: %}}}`` as in ``metrics.json``.
+      out: PNG to write (atomically).
+      intervals: ``{method: {ratio: {threshold key: [lo, hi]}}}``, drawn as error bars.
+      full_map: ``{threshold key: %}`` of the unpruned map, a dashed horizontal line.
+      thresholds: one panel per threshold key (``"5m_10deg"`` is the paper's Fig. 11).
+      labels: legend label per method (default: the method key).
+      title: figure title.
+
+    Returns:
+      The PNG written.
+    """
+    fig = _new_figure(5.2 * len(thresholds), 4.2)
+    axes = fig.subplots(1, len(thresholds), squeeze=False)[0]
+    labels = labels or {}
+    methods = list(accuracy)
+    for ax, th in zip(axes, thresholds):
+        for k, method in enumerate(methods):
+            per_ratio = accuracy[method]
+            ratios = sorted(per_ratio, key=float)
+            color, marker, ls = _FIG11_STYLES.get(method, (None, "x", "-"))
+            # Small horizontal offsets keep overlapping error bars apart.
+            x = np.array([100 * float(r) for r in ratios]) + 0.6 * (k - (len(methods) - 1) / 2)
+            y = np.array([per_ratio[r][th] for r in ratios], np.float64)
+            yerr = None
+            if intervals is not None and method in intervals:
+                lo = np.array([intervals[method][r][th][0] for r in ratios], np.float64)
+                hi = np.array([intervals[method][r][th][1] for r in ratios], np.float64)
+                yerr = np.stack([np.maximum(y - lo, 0), np.maximum(hi - y, 0)])
+            ax.errorbar(
+                x, y, yerr=yerr, marker=marker, color=color, ls=ls, capsize=2, ms=4,
+                lw=2 if method in ("rp", "rp_paper") else 1.2,
+                label=labels.get(method, method),
+            )
+        if full_map is not None:
+            ax.axhline(full_map[th], color="k", ls=":", lw=1, label="full map")
+        dist, ang = th.split("_")
+        ax.set_title(f"queries localized within ({dist[:-1]} m, {ang[:-3]}°)")
+        ax.set_xlabel("pruned 3D points (%)")
+        ax.set_ylabel("localization accuracy (%)")
+        ax.set_ylim(-2, 102)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="lower left", fontsize=7)
+    if title:
+        fig.suptitle(title)
     return save_figure(fig, out)

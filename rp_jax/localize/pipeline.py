@@ -63,6 +63,11 @@ class LocalizationResult:
     retrieved: list[str]
     num_candidates: int
     num_matches: int
+    # Rows of the PnP inliers' 3D points in the map given to LocalizationMap (before any
+    # keep-mask), so that inliers of different summaries are comparable.
+    inlier_points: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros(0, np.int64)
+    )
 
     @property
     def success(self) -> bool:
@@ -92,10 +97,12 @@ class LocalizationMap:
             raise ValueError(
                 f"{len(point_descriptors)} point descriptors for {map_points.num_points} points"
             )
+        self.rows = np.arange(map_points.num_points, dtype=np.int64)
         if keep is not None:
             keep = np.asarray(keep, dtype=bool)
             map_points = map_points.subset(keep)
             point_descriptors = point_descriptors[keep]
+            self.rows = np.flatnonzero(keep).astype(np.int64)
         self.map_points = map_points
         self.point_descriptors = point_descriptors
         self.index = index
@@ -155,7 +162,10 @@ def localize(
         min_inliers=min_inliers,
         seed=seed,
     )
-    return LocalizationResult(pose, retrieved, len(candidates), len(q_idx))
+    inlier_points = (
+        localization_map.rows[rows[pose.inliers]] if pose.success else np.zeros(0, np.int64)
+    )
+    return LocalizationResult(pose, retrieved, len(candidates), len(q_idx), inlier_points)
 
 
 def localize_queries(

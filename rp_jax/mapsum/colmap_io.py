@@ -34,8 +34,10 @@ import pycolmap
 
 __all__ = [
     "MapPoints",
+    "COLMAP_TO_OPENCV_PX",
     "camera_matrix",
     "gather_observation_values",
+    "opencv_camera",
     "map_points_from_reconstruction",
     "read_model",
     "summary_reconstruction",
@@ -44,6 +46,8 @@ __all__ = [
 ]
 
 _MODEL_FILES = ("cameras", "images", "points3D")
+# COLMAP pixel coordinates put the top-left pixel's centre at (0.5, 0.5), OpenCV's at (0, 0).
+COLMAP_TO_OPENCV_PX = -0.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,6 +217,35 @@ def write_model(rec: pycolmap.Reconstruction, path: str | os.PathLike, binary: b
 def camera_matrix(camera: pycolmap.Camera) -> np.ndarray:
     """3x3 intrinsic matrix of a pycolmap camera (distortion, if any, is not included)."""
     return np.asarray(camera.calibration_matrix(), dtype=np.float64)
+
+
+def opencv_camera(colmap_camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """(K, distortion, width, height) in OpenCV's pixel convention from a pycolmap camera.
+
+    COLMAP puts the centre of the top-left pixel at (0.5, 0.5), OpenCV at (0, 0): the
+    principal point moves by -0.5 px (``COLMAP_TO_OPENCV_PX``).
+    """
+    K = np.asarray(colmap_camera.calibration_matrix(), np.float64).copy()
+    K[0, 2] += COLMAP_TO_OPENCV_PX
+    K[1, 2] += COLMAP_TO_OPENCV_PX
+    model = (
+        colmap_camera.model.name
+        if hasattr(colmap_camera.model, "name")
+        else str(colmap_camera.model)
+    )
+    params = np.asarray(colmap_camera.params, np.float64)
+    if model == "OPENCV":
+        dist = params[4:8]
+    elif model in ("PINHOLE", "SIMPLE_PINHOLE"):
+        dist = np.zeros(0)
+    elif model in ("SIMPLE_RADIAL", "RADIAL"):
+        dist = np.array([params[3], params[4] if model == "RADIAL" else 0.0, 0.0, 0.0])
+    else:
+        raise ValueError(
+            f"camera model {model} is not supported (expected OPENCV, PINHOLE, "
+            "SIMPLE_PINHOLE, SIMPLE_RADIAL or RADIAL)"
+        )
+    return K, dist, int(colmap_camera.width), int(colmap_camera.height)
 
 
 def map_points_from_reconstruction(rec: pycolmap.Reconstruction) -> MapPoints:

@@ -1,0 +1,661 @@
+"""The map-summarization experiment of Sec. IV-B (Fig. 11), measured so that it can be seen.
+
+``run(config, workdir)`` is what ``python -m experiments.map_summarization`` calls:
+
+1. **RP on RobotCar** (Sec. IV-B-1, ``train.py``): the paper's predictor, T = 9 hourly
+   timestamps 9:00-17:00, time of day as input.
+2. For **every world seed** (``config.map.seeds``; a real download is one "seed"): the
+   Extended CMU Seasons test slice (the paper's region 8) and its queries of **every query
+   date** (``config.map.query_dates``; empty = all dates of the layout). The synthetic world
+   renders only the frames needed (``rp_jax.sources.synthetic.map_layout``).
+3. **The full 3D map** (Sec. V-A-1): the slice's reference COLMAP model; per observation the
+   RP's [T] repeatability and a re-detected SIFT descriptor (``rp_jax.mapsum.observations``);
+   a point's repeatability and descriptor are the means over its observations.
+4. **Summaries** at pruning ratios ``config.map.ratios`` on the same ground-plane grid
+   partition, the same number of points kept per part by every method:
+   - ``rp_paper``: the paper's protocol exactly (Sec. V-A-2): the most repeatable points
+     of each part at the query's time of day;
+   - ``rp``: the project's recommended RP method (``config.map.rp_method``; see README);
+   - ``kcover`` (Li et al.'s minimal scene description), ``random``, ``most_observed``;
+   - ``oracle_agnostic`` and ``oracle_date`` (``rp_jax.mapsum.oracles``): the headroom,
+     marked as oracles everywhere.
+5. **Localization** (Sec. V-B): VLAD retrieval, 2D-3D ratio matching, PnP-RANSAC; every
+   query with a ground-truth pose is scored at (0.25 m, 2 deg), (0.5 m, 5 deg),
+   (5 m, 10 deg). Queries without one are localized and written to the submission file but
+   not scored (a real download has poses for about half of its queries).
+6. **Statistics** (``rp_jax.mapsum.statistics``), pooled over seeds and dates: accuracy with
+   a 95 % bootstrap interval over queries; for every method, ratio and threshold the
+   paired counts against K-cover and the exact McNemar p-value; every method's AUC for
+   ranking the full map's PnP inliers among the retrieved images' points, pooled and per
+   date; min/median kept points per database image.
+7. ``metrics.json``, ``report.md`` (``report.py``), the Fig. 11 PNGs with intervals,
+   ``seed{N}/`` per world: its outcomes (``seed.json``, written atomically; a re-run
+   reuses a finished seed of the same settings), submissions and the rp summary at 50 % as
+   a COLMAP model.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import logging
+import os
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import ml_collections
+import numpy as np
+from tqdm.auto import tqdm
+
+from experiments.map_summarization import report
+from experiments.map_summarization.train import train_predictor
+from rp_jax import experiment, plots
+from rp_jax.groundtruth.features import detect_and_describe
+from rp_jax.localize import (
+    LocalizationMap,
+    QueryImage,
+    build_vlad_index,
+    localize,
+    pose_error,
+    rootsift,
+    vlad,
+    write_submission,
+)
+from rp_jax.mapsum import (
+    kcover_keep,
+    map_points_from_reconstruction,
+    mean_per_point,
+    most_observed_keep,
+    partition,
+    point_repeatability,
+    prune_by_score,
+    random_keep,
+    read_model,
+    write_summary_model,
+)
+from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.mapsum.observations import describe_observations, point_categories, query_scores
+from rp_jax.mapsum.oracles import agnostic_counts, redetection_counts, with_track_tiebreak
+from rp_jax.mapsum.statistics import (
+    bootstrap_interval,
+    image_coverage,
+    inlier_auc,
+    mcnemar_exact,
+    paired_counts,
+)
+from rp_jax.sources import cmu_seasons
+
+__all__ = [
+    "METHODS",
+    "METHOD_LABELS",
+    "ORACLES",
+    "THRESHOLDS",
+    "THRESHOLD_KEYS",
+    "run",
+]
+
+log = logging.getLogger(__name__)
+
+METHODS = (
+    "rp_paper",
+    "rp",
+    "kcover",
+    "random",
+    "most_observed",
+    "oracle_agnostic",
+    "oracle_date",
+)
+ORACLES = ("oracle_agnostic", "oracle_date")
+REFERENCE = "kcover"
+METHOD_LABELS = {
+    "rp_paper": "RP, paper's protocol",
+    "rp": "RP (recommended)",
+    "kcover": "K-cover (minimal scene)",
+    "random": "random",
+    "most_observed": "most observed",
+    "oracle_agnostic": "oracle: other dates' inliers",
+    "oracle_date": "oracle: own date's re-detection",
+}
+# What ``config.map.rp_method`` may name: how the recommended ``rp`` turns the query-time
+# RP score into a summary (both keep the same number of points per part as every method).
+RP_METHODS = ("top", "rp_kcover")
+MIN_RP_WEIGHT = 1e-3  # K-cover weights must be positive
+THRESHOLDS = ((0.25, 2.0), (0.5, 5.0), (5.0, 10.0))
+THRESHOLD_KEYS = ("0.25m_2deg", "0.5m_5deg", "5m_10deg")
+MAIN_THRESHOLD = "5m_10deg"
+SEED_FILE = "seed.json"
+
+
+# ----------------------------------------------------------------------------- queries
+
+
+def load_queries(
+    root: Path,
+    slice_id: int,
+    dates: Sequence[dt.date] | None,
+    max_keypoints: int,
+    vocabulary: np.ndarray,
+    progress: bool,
+) -> list[dict]:
+    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size."""
+    caps = cmu_seasons.read_queries(root, slices=[slice_id])
+    found = sorted({c.time.date() for c in caps})
+    if dates:
+        caps = [c for c in caps if c.time.date() in set(dates)]
+    if not caps:
+        raise ValueError(
+            f"{root}/slice{slice_id}/query: no query on "
+            f"{[d.isoformat() for d in dates or []] or 'any date'}; "
+            f"query dates there: {[d.isoformat() for d in found]}"
+        )
+    out = []
+    for c in tqdm(caps, desc="queries", leave=False, disable=not progress):
+        img = cmu_seasons.load_image(c)
+        if img is None:
+            raise FileNotFoundError(f"{c.image_path}: query image unreadable")
+        f = detect_and_describe(img, max_keypoints=max_keypoints)
+        cam = cmu_seasons.undistorted_camera(c)
+        out.append(
+            {
+                "query": QueryImage(
+                    c.image_path.name,
+                    f.xy,
+                    f.descriptor,
+                    vlad(rootsift(f.descriptor), vocabulary),
+                    cam.K,
+                ),
+                "pose": None if c.R is None else (np.asarray(c.R), np.asarray(c.t)),
+                "time": c.time,
+                "date": c.time.date(),
+                "size": (int(cam.width), int(cam.height)),
+            }
+        )
+    return out
+
+
+def bucket(when: dt.datetime, minutes: int) -> dt.datetime:
+    """``when`` rounded down to ``minutes`` (queries in one bucket share a summary)."""
+    m = when.hour * 60 + when.minute
+    m -= m % max(1, minutes)
+    return when.replace(hour=m // 60, minute=m % 60, second=0, microsecond=0)
+
+
+def _success(pose, est) -> list[bool]:
+    if pose is None or est is None:
+        return [False] * len(THRESHOLDS)
+    e_pos, e_rot = pose_error(pose[0], pose[1], est[0], est[1])
+    return [bool(e_pos <= d and e_rot <= r) for d, r in THRESHOLDS]
+
+
+# ----------------------------------------------------------------------------- one world
+
+
+def _cmu_root(config, seed: int) -> Path:
+    m = config.map
+    if m.root:
+        return Path(m.root)
+    if config.data_config == "real":
+        return Path(config.manual_dir) / "cmu_seasons"
+    from rp_jax.datasets import builder as builder_lib
+    from rp_jax.datasets import loading
+
+    data_dir = Path(config.data_dir) if config.data_dir else loading.default_data_dir()
+    return builder_lib.synthetic_root(data_dir.absolute(), "cmu_seasons", m.synthetic_size, seed)
+
+
+def _fingerprint(config, params) -> str:
+    """What makes one seed's outcomes: the config (less the seed list) and the RP's weights."""
+    import jax
+
+    settings = config.to_dict()
+    settings["map"].pop("seeds", None)
+    h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
+    for leaf in jax.tree_util.tree_leaves(params):
+        h.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _write_json_atomic(path: Path, payload) -> None:
+    experiment.write_json(path, payload)
+
+
+def evaluate_world(
+    config: ml_collections.ConfigDict,
+    seed: int,
+    predictor,
+    out_dir: Path,
+    *,
+    fingerprint: str,
+    progress: bool = True,
+) -> dict:
+    """Every method on one world (seed): per-query outcomes and per-point evidence.
+
+    Returns (and writes to ``out_dir/seed.json``) a dict with ``queries`` (names, dates,
+    posed flags), ``outcomes`` ({method: {ratio: [[bool x 3] per query]}}), ``auc``
+    ({method: {"all": auc, date: auc}}), ``coverage`` and the map's counts.
+    """
+    done = out_dir / SEED_FILE
+    if done.is_file():
+        prev = json.loads(done.read_text())
+        if prev.get("fingerprint") == fingerprint:
+            log.info("seed %d: reusing %s", seed, done)
+            return prev
+    out_dir.mkdir(parents=True, exist_ok=True)
+    m = config.map
+    timings: dict[str, float] = {}
+    tic = time.perf_counter()
+    dates = [dt.date.fromisoformat(d) for d in m.query_dates] or None
+    root = _cmu_root(config, seed)
+    if config.data_config != "real" and not m.root:
+        from rp_jax.sources.synthetic.map_layout import (
+            available_query_dates,
+            ensure_cmu_map_layout,
+        )
+
+        ensure_cmu_map_layout(
+            root,
+            size=m.synthetic_size,
+            seed=seed,
+            slice_id=m.slice,
+            query_dates=dates or available_query_dates(m.synthetic_size, seed, m.slice),
+            workers=m.workers or None,
+            progress=progress,
+        )
+    timings["layout_s"] = time.perf_counter() - tic
+
+    tic = time.perf_counter()
+    sparse = root / f"slice{m.slice}" / "sparse"
+    rec = read_model(sparse)
+    mp = map_points_from_reconstruction(rec)
+    if mp.num_points == 0:
+        raise ValueError(f"{sparse}: the map has no 3D points")
+    obs = describe_observations(
+        rec,
+        mp,
+        root / f"slice{m.slice}" / "database",
+        predictor,
+        root=root,
+        max_keypoints=m.max_keypoints,
+        associate_px=m.associate_px,
+        describe_on=m.describe_on,
+        progress=progress,
+    )
+    point_rep = point_repeatability(mp, obs.repeatability)
+    point_desc = mean_per_point(
+        obs.descriptors[obs.associated], mp.obs_point[obs.associated], mp.num_points
+    )
+    point_cat = point_categories(mp, obs.category)
+    index, vocabulary = build_vlad_index(obs.image_descriptors, num_words=m.vlad_words, seed=seed)
+    parts = partition(mp.xyz, "grid", cell_size=m.cell_size_m)
+    timings["map_s"] = time.perf_counter() - tic
+
+    tic = time.perf_counter()
+    queries = load_queries(root, m.slice, dates, m.max_keypoints, vocabulary, progress)
+    buckets: dict[dt.datetime, list[int]] = {}
+    for i, q in enumerate(queries):
+        buckets.setdefault(bucket(q["time"], m.time_bucket_minutes), []).append(i)
+    query_dates = sorted({q["date"] for q in queries})
+    timings["queries_s"] = time.perf_counter() - tic
+
+    loc_kwargs = {
+        "num_retrieved": m.num_retrieved,
+        "ratio": m.match_ratio,
+        "reprojection_error": m.reprojection_error,
+        "min_inliers": m.min_inliers,
+        "ransac_iterations": m.ransac_iterations,
+        "seed": seed,
+    }
+
+    # Full map: the ceiling, the inliers behind oracle_agnostic and the AUCs.
+    tic = time.perf_counter()
+    full_lmap = LocalizationMap(mp, point_desc, index)
+    full_results = [localize(q["query"], full_lmap, **loc_kwargs) for q in queries]
+    full_outcomes = [
+        _success(q["pose"], (r.pose.R, r.pose.t) if r.success else None)
+        for q, r in zip(queries, full_results)
+    ]
+    inliers_by_date = {d: np.zeros(mp.num_points, np.int64) for d in query_dates}
+    for q, r in zip(queries, full_results):
+        inliers_by_date[q["date"]][r.inlier_points] += 1
+    write_submission(
+        out_dir / "submissions" / "full_map.txt",
+        {
+            q["query"].name: (r.pose.R, r.pose.t) if r.success else None
+            for q, r in zip(queries, full_results)
+        },
+    )
+    timings["full_map_s"] = time.perf_counter() - tic
+
+    # Oracle_date: ground-truth re-detection in the posed queries of each date.
+    tic = time.perf_counter()
+    redetected = {
+        d: redetection_counts(
+            mp,
+            point_desc,
+            [
+                (q["query"].xy, q["query"].descriptors, q["query"].K, *q["pose"], q["size"])
+                for q in queries
+                if q["date"] == d and q["pose"] is not None
+            ],
+            radius_px=m.oracle_radius_px,
+            ratio=m.match_ratio,
+        )
+        for d in query_dates
+    }
+    timings["oracle_s"] = time.perf_counter() - tic
+
+    scores_at = {b: query_scores(point_rep, predictor.schedule, b) for b in buckets}
+    track = mp.track_length.astype(np.float64)
+
+    def score(method: str, b: dt.datetime) -> np.ndarray | None:
+        """Query-time ranking score of a score-based method (None: a set method)."""
+        if method in ("rp_paper", "rp"):
+            return scores_at[b]
+        if method == "most_observed":
+            return track
+        if method == "random":
+            return np.random.default_rng(m.random_seed).permutation(mp.num_points).astype(float)
+        if method == "oracle_agnostic":
+            return with_track_tiebreak(
+                agnostic_counts(inliers_by_date, b.date()) if len(query_dates) > 1
+                else np.zeros(mp.num_points), mp,
+            )
+        if method == "oracle_date":
+            return with_track_tiebreak(redetected[b.date()], mp)
+        return None
+
+    kcover_kwargs = {"K": m.kcover_K} if m.kcover_K > 0 else {}
+
+    def summary(method: str, ratio: float, b: dt.datetime) -> np.ndarray:
+        if method == "kcover":
+            return kcover_keep(mp, ratio, parts, **kcover_kwargs)
+        if method == "rp" and m.rp_method == "rp_kcover":
+            w = np.clip(np.nan_to_num(scores_at[b]), MIN_RP_WEIGHT, 1.0)
+            return kcover_keep(mp, ratio, parts, weights=w, **kcover_kwargs)
+        if method == "random":
+            return random_keep(mp, ratio, parts, seed=m.random_seed)
+        if method == "most_observed":
+            return most_observed_keep(mp, ratio, parts)
+        return prune_by_score(score(method, b), parts, ratio)
+
+    time_dependent = {"rp_paper", "rp", "oracle_agnostic", "oracle_date"}
+    ratios = [float(r) for r in m.ratios]
+    outcomes: dict[str, dict[str, list]] = {k: {} for k in METHODS}
+    coverage: dict[str, dict[str, list[float]]] = {k: {} for k in METHODS}
+    kept_count: dict[str, dict[str, list[int]]] = {k: {} for k in METHODS}
+    method_s = {k: 0.0 for k in METHODS}
+    bar = tqdm(total=len(ratios) * len(METHODS), desc=f"seed {seed} summaries", leave=False,
+               disable=not progress)
+    tic = time.perf_counter()
+    for ratio in ratios:
+        key = f"{ratio:.1f}"
+        for method in METHODS:
+            t0 = time.perf_counter()
+            shared = None if method in time_dependent else summary(method, ratio, next(iter(buckets)))
+            est: dict[str, tuple | None] = {}
+            res: list = [None] * len(queries)
+            covs, kept = [], []
+            for b, rows in buckets.items():
+                keep = shared if shared is not None else summary(method, ratio, b)
+                if shared is None or not covs:
+                    covs.append(image_coverage(mp, keep))
+                    kept.append(int(keep.sum()))
+                lmap = LocalizationMap(mp, point_desc, index, keep)
+                for i in rows:
+                    r = localize(queries[i]["query"], lmap, **loc_kwargs)
+                    e = (r.pose.R, r.pose.t) if r.success else None
+                    est[queries[i]["query"].name] = e
+                    res[i] = _success(queries[i]["pose"], e)
+                if method == "rp" and abs(ratio - 0.5) < 1e-9 and b == next(iter(buckets)):
+                    write_summary_model(rec, mp, keep, out_dir / "summaries" / f"rp_{key}")
+            outcomes[method][key] = res
+            coverage[method][key] = [min(c[0] for c in covs), float(np.median([c[1] for c in covs]))]
+            kept_count[method][key] = kept
+            write_submission(out_dir / "submissions" / f"{method}_{key}.txt", est)
+            method_s[method] += time.perf_counter() - t0
+            bar.update()
+    bar.close()
+    timings["summaries_s"] = time.perf_counter() - tic
+    timings.update({f"{k}_s": v for k, v in method_s.items()})
+
+    # AUC of each method's query-time score for ranking the full map's PnP inliers among
+    # the points the retrieved images see (posed queries localized on the full map).
+    # K-cover has no score: its rank is the number of ratios at which a point is kept.
+    kc_rank = sum(
+        summary("kcover", r, next(iter(buckets))).astype(float) for r in ratios
+    )
+    auc: dict[str, dict[str, float | None]] = {}
+    pairs: dict[str, list] = {k: [] for k in METHODS}
+    labels: list[np.ndarray] = []
+    pair_date: list[np.ndarray] = []
+    for b, rows in buckets.items():
+        per_method = {k: (score(k, b) if k != "kcover" else kc_rank) for k in METHODS}
+        if m.rp_method == "rp_kcover":
+            per_method["rp"] = scores_at[b]
+        for i in rows:
+            r = full_results[i]
+            if not r.success:
+                continue
+            cand = full_lmap.points_seen_by(r.retrieved)
+            lab = np.isin(cand, r.inlier_points)
+            labels.append(lab)
+            pair_date.append(np.full(len(cand), queries[i]["date"].toordinal()))
+            for k in METHODS:
+                pairs[k].append(per_method[k][cand])
+    if labels:
+        lab = np.concatenate(labels)
+        pdate = np.concatenate(pair_date)
+        for k in METHODS:
+            s = np.concatenate(pairs[k])
+            auc[k] = {"all": inlier_auc(s, lab)}
+            for d in query_dates:
+                sel = pdate == d.toordinal()
+                auc[k][d.isoformat()] = inlier_auc(s[sel], lab[sel])
+    else:
+        auc = {k: {"all": None} for k in METHODS}
+
+    result = {
+        "fingerprint": fingerprint,
+        "seed": seed,
+        "root": str(root),
+        "queries": {
+            "names": [q["query"].name for q in queries],
+            "dates": [q["date"].isoformat() for q in queries],
+            "times": [q["time"].isoformat(timespec="seconds") for q in queries],
+            "posed": [q["pose"] is not None for q in queries],
+        },
+        "full_map": full_outcomes,
+        "outcomes": outcomes,
+        "coverage": coverage,
+        "kept_points": kept_count,
+        "auc": auc,
+        "map": {
+            "points": int(mp.num_points),
+            "observations": int(mp.num_observations),
+            "database_images": len(mp.image_names),
+            "parts": int(parts.max()) + 1,
+            "descriptor_association_rate": round(float(obs.associated.mean()), 4),
+            "full_map_inlier_points": int(sum(v.astype(bool).sum() for v in inliers_by_date.values())),
+            "oracle_date_points": {d.isoformat(): int((v > 0).sum()) for d, v in redetected.items()},
+            "category_points": {
+                str(c): int(n) for c, n in zip(*np.unique(point_cat, return_counts=True))
+            },
+        },
+        "timings": {k: round(v, 2) for k, v in timings.items()},
+    }
+    _write_json_atomic(done, result)
+    return result
+
+
+# ----------------------------------------------------------------------------- pooling
+
+
+def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int = 2000) -> dict:
+    """Accuracy, intervals, paired tests and AUCs pooled over seeds (posed queries only)."""
+    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
+    n = int(posed.sum())
+    if n == 0:
+        raise ValueError("no query has a ground-truth pose: nothing to score")
+
+    def stacked(method: str, ratio: str) -> np.ndarray:
+        a = np.concatenate(
+            [np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
+             for s in per_seed]
+        )
+        return a[posed]
+
+    accuracy, interval, paired = {}, {}, {}
+    for method in METHODS:
+        accuracy[method], interval[method], paired[method] = {}, {}, {}
+        for ratio in ratios:
+            a = stacked(method, ratio)
+            ref = stacked(REFERENCE, ratio)
+            accuracy[method][ratio], interval[method][ratio], paired[method][ratio] = {}, {}, {}
+            for j, th in enumerate(THRESHOLD_KEYS):
+                accuracy[method][ratio][th] = round(100.0 * float(a[:, j].mean()), 2)
+                lo, hi = bootstrap_interval(a[:, j], resamples=resamples, seed=0)
+                interval[method][ratio][th] = [round(lo, 2), round(hi, 2)]
+                b, c = paired_counts(a[:, j], ref[:, j])
+                paired[method][ratio][th] = {
+                    "only_method": b,
+                    "only_kcover": c,
+                    "p": mcnemar_exact(b, c),
+                }
+    full = np.concatenate(
+        [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
+    )[posed]
+    full_acc = {th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)}
+    auc = {}
+    auc_per_date: dict[str, dict[str, float | None]] = {}
+    for method in METHODS:
+        vals = [s["auc"][method]["all"] for s in per_seed if s["auc"][method]["all"] is not None]
+        auc[method] = round(float(np.mean(vals)), 4) if vals else None
+        dates = sorted({d for s in per_seed for d in s["auc"][method] if d != "all"})
+        auc_per_date[method] = {}
+        for d in dates:
+            v = [s["auc"][method].get(d) for s in per_seed]
+            v = [x for x in v if x is not None]
+            auc_per_date[method][d] = round(float(np.mean(v)), 4) if v else None
+    coverage = {
+        method: {
+            ratio: {
+                "min": int(min(s["coverage"][method][ratio][0] for s in per_seed)),
+                "median": float(np.median([s["coverage"][method][ratio][1] for s in per_seed])),
+            }
+            for ratio in ratios
+        }
+        for method in METHODS
+    }
+    # Per date: accuracy at the main threshold, so a reader sees where methods differ.
+    dates = np.concatenate([np.asarray(s["queries"]["dates"]) for s in per_seed])[posed]
+    per_date = {}
+    j = THRESHOLD_KEYS.index(MAIN_THRESHOLD)
+    for ratio in ratios:
+        per_date[ratio] = {}
+        for method in METHODS:
+            a = stacked(method, ratio)[:, j]
+            per_date[ratio][method] = {
+                d: round(100.0 * float(a[dates == d].mean()), 1) for d in sorted(set(dates))
+            }
+    return {
+        "queries": n,
+        "queries_without_pose": int((~posed).sum()),
+        "accuracy": accuracy,
+        "interval": interval,
+        "paired": paired,
+        "full_map_accuracy": full_acc,
+        "inlier_auc": auc,
+        "inlier_auc_per_date": auc_per_date,
+        "image_coverage": coverage,
+        "accuracy_per_date": per_date,
+    }
+
+
+# ----------------------------------------------------------------------------- run
+
+
+def run(
+    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
+) -> dict:
+    """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds."""
+    m = config.map
+    if m.rp_method not in RP_METHODS:
+        raise ValueError(f"config.map.rp_method must be one of {RP_METHODS}, got {m.rp_method!r}")
+    if not m.seeds:
+        raise ValueError("config.map.seeds is empty: give at least one world seed")
+    workdir = Path(workdir).absolute()
+    workdir.mkdir(parents=True, exist_ok=True)
+    timings: dict[str, float] = {}
+    tic = time.perf_counter()
+    predictor, rp_counts = train_predictor(config, workdir / "rp", progress=progress)
+    timings["rp_dataset_and_training_s"] = time.perf_counter() - tic
+    fingerprint = _fingerprint(config, predictor.params)
+    seeds = [0] if config.data_config == "real" or m.root else [int(s) for s in m.seeds]
+    per_seed = []
+    for seed in seeds:
+        tic = time.perf_counter()
+        per_seed.append(
+            evaluate_world(config, seed, predictor, workdir / f"seed{seed}",
+                           fingerprint=fingerprint, progress=progress)
+        )
+        timings[f"seed{seed}_s"] = time.perf_counter() - tic
+    ratios = [f"{float(r):.1f}" for r in m.ratios]
+    pooled = pool(per_seed, ratios)
+    schedule = predictor.schedule
+    metrics = {
+        **pooled,
+        "seeds": seeds,
+        "ratios": ratios,
+        "thresholds": list(THRESHOLD_KEYS),
+        "methods": list(METHODS),
+        "oracles": list(ORACLES),
+        "reference": REFERENCE,
+        "rp_method": m.rp_method,
+        "map_sizes": {
+            str(s["seed"]): {
+                "full": s["map"]["points"],
+                **{r: s["kept_points"]["kcover"][r][0] for r in ratios},
+            }
+            for s in per_seed
+        },
+        "maps": {str(s["seed"]): s["map"] for s in per_seed},
+        "query_dates": sorted({d for s in per_seed for d in s["queries"]["dates"]}),
+        "rp_training": {
+            **rp_counts,
+            "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
+            "validation": experiment.last_validation(workdir / "rp"),
+        },
+        "dataset": {
+            "rp": f"robotcar/{config.data_config}",
+            "map": [s["root"] for s in per_seed],
+        },
+    }
+    tic = time.perf_counter()
+    labels = {k: METHOD_LABELS[k] + (" [oracle]" if k in ORACLES and "oracle" not in METHOD_LABELS[k] else "") for k in METHODS}
+    figures = [
+        plots.plot_accuracy_vs_pruning(
+            metrics["accuracy"], workdir / "fig11_accuracy_vs_pruning.png",
+            intervals=metrics["interval"], full_map=metrics["full_map_accuracy"],
+            thresholds=(MAIN_THRESHOLD,), labels=labels,
+            title=f"{metrics['queries']} queries, seeds {seeds}",
+        ),
+        plots.plot_accuracy_vs_pruning(
+            metrics["accuracy"], workdir / "fig11_all_thresholds.png",
+            intervals=metrics["interval"], full_map=metrics["full_map_accuracy"],
+            thresholds=THRESHOLD_KEYS, labels=labels,
+        ),
+    ]
+    timings["figures_s"] = time.perf_counter() - tic
+    metrics["figures"] = [f.name for f in figures]
+    metrics["timings"] = {
+        **{k: round(v, 2) for k, v in timings.items()},
+        "per_seed": {str(s["seed"]): s["timings"] for s in per_seed},
+    }
+    experiment.write_json(workdir / "metrics.json", metrics)
+    text = report.markdown(metrics, config, METHOD_LABELS)
+    tmp = workdir / ".report.md.tmp"
+    tmp.write_text(text)
+    os.replace(tmp, workdir / "report.md")
+    return metrics

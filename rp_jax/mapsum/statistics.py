@@ -1,0 +1,116 @@
+"""Statistics for comparing summaries by localization (Fig. 11 done so that it can be seen).
+
+The paper's Fig. 11 compares methods by the fraction of queries localized at each pruning
+ratio. Two methods localize the *same* queries, so the comparison is paired: the exact
+McNemar test counts the queries only one of the two localizes (``b``, ``c``) and asks how
+likely a split at least that uneven is if each discordant query were a fair coin
+(two-sided binomial test with p = 1/2). Accuracies get a percentile bootstrap interval over
+queries. A score's power to rank map points that matter is the AUC of ranking the full
+map's PnP inliers above the other candidate points (0.5 = chance).
+
+Everything here is pure NumPy/SciPy and has no idea what a map is, except
+``image_coverage``, which counts kept points per database image (K-cover's objective).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from rp_jax.mapsum.colmap_io import MapPoints
+
+__all__ = [
+    "bootstrap_interval",
+    "image_coverage",
+    "inlier_auc",
+    "mcnemar_exact",
+    "paired_counts",
+]
+
+
+def paired_counts(method: np.ndarray, reference: np.ndarray) -> tuple[int, int]:
+    """Discordant pairs of two boolean outcome vectors over the same queries.
+
+    Args:
+      method: [N] bool, query localized by the method.
+      reference: [N] bool, query localized by the reference method (K-cover).
+
+    Returns:
+      (queries only ``method`` localizes, queries only ``reference`` localizes).
+    """
+    a = np.asarray(method, bool)
+    b = np.asarray(reference, bool)
+    if a.shape != b.shape:
+        raise ValueError(f"paired outcomes of different shapes: {a.shape} vs {b.shape}")
+    return int(np.sum(a & ~b)), int(np.sum(~a & b))
+
+
+def mcnemar_exact(only_method: int, only_reference: int) -> float:
+    """Two-sided exact McNemar p-value from the discordant counts.
+
+    ``p = min(1, 2 * P[X <= min(b, c)])`` with ``X ~ Binomial(b + c, 1/2)``; 1.0 when there
+    is no discordant query.
+    """
+    b, c = int(only_method), int(only_reference)
+    if b < 0 or c < 0:
+        raise ValueError(f"discordant counts must be >= 0, got {b}, {c}")
+    n = b + c
+    if n == 0:
+        return 1.0
+    return float(min(1.0, 2.0 * stats.binom.cdf(min(b, c), n, 0.5)))
+
+
+def bootstrap_interval(
+    outcomes: np.ndarray, *, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of ``outcomes`` (in %), over queries.
+
+    Args:
+      outcomes: [N] bool or 0/1, one per query.
+      level: coverage of the interval.
+      resamples: bootstrap resamples.
+      seed: resampling seed (the same seed for every method keeps intervals comparable).
+
+    Returns:
+      (low, high) in percent; (nan, nan) without queries.
+    """
+    x = np.asarray(outcomes, np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"outcomes must be 1-D, got shape {x.shape}")
+    if len(x) == 0:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(x), size=(resamples, len(x)))
+    means = x[idx].mean(axis=1)
+    alpha = (1.0 - level) / 2.0
+    lo, hi = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(100.0 * lo), float(100.0 * hi)
+
+
+def inlier_auc(score: np.ndarray, positive: np.ndarray) -> float | None:
+    """Probability that a positive outranks a negative (ties count half); None if undefined.
+
+    This is the Mann-Whitney U statistic over ``len(positive) * len(negative)``.
+    NaN scores rank lowest.
+    """
+    s = np.nan_to_num(np.asarray(score, np.float64), nan=-np.inf)
+    pos_mask = np.asarray(positive, bool)
+    pos, n = int(pos_mask.sum()), len(pos_mask)
+    if pos == 0 or pos == n:
+        return None
+    r = stats.rankdata(s)
+    return float((r[pos_mask].sum() - pos * (pos + 1) / 2) / (pos * (n - pos)))
+
+
+def image_coverage(map_points: MapPoints, keep: np.ndarray) -> tuple[int, float]:
+    """(min, median) number of kept points seen by each database image of the map."""
+    keep = np.asarray(keep, bool)
+    ids = sorted(int(i) for i in map_points.image_names)
+    if not ids:
+        return 0, 0.0
+    pos = {i: k for k, i in enumerate(ids)}
+    seen = keep[map_points.obs_point]
+    counts = np.zeros(len(ids), np.int64)
+    rows = np.fromiter((pos[int(i)] for i in map_points.obs_image_id[seen]), np.int64)
+    np.add.at(counts, rows, 1)
+    return int(counts.min()), float(np.median(counts))
