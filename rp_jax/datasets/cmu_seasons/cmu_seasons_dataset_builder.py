@@ -19,8 +19,12 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "cmu_seasons"
     BUILDER_CONFIGS = builder.builder_configs(records_per_image=32)
-    VERSION = tfds.core.Version("1.2.0")
+    VERSION = tfds.core.Version("1.3.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.3.0": "Real layouts: the query ground truth the release ships in "
+        "slice{N}/camera-poses/*.txt is read, so the posed queries (the other dates) join "
+        "the viewpoints, and the original CMU Seasons' ..._rect.jpg names are read. "
+        "Synthetic records are unchanged (world version 3 adds camera-poses/ only).",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges; the full synthetic world is 20 "
@@ -38,9 +42,9 @@ class Builder(builder.RepeatabilityBuilder):
         <manual_dir>/slice{N}/database/img_<i>_<c0|c1>_<unix_us>us.jpg
         <manual_dir>/slice{N}/query/img_<i>_<c0|c1>_<unix_us>us.jpg
         <manual_dir>/slice{N}/ground-truth-database-images-slice{N}.txt
-        <manual_dir>/_evaluation/ground-truth-query-images-slice{N}.txt   optional
+        <manual_dir>/slice{N}/camera-poses/*.txt                          query poses
         <manual_dir>/segmentation/slice{N}/<database|query>/<stem>.png     optional
 
-    Query images without a ground-truth pose cannot be grouped into viewpoints and are
-    skipped.
+    The release has poses for about half of the queries (camera-poses/); query images
+    without a ground-truth pose cannot be grouped into viewpoints and are skipped.
     """

@@ -18,8 +18,14 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "webcam_clipart"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.2.0")
+    VERSION = tfds.core.Version("1.3.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.3.0": "File names on their own clock, as the real releases (AMOS: UTC; the author's "
+        "sample: US/Eastern whatever the camera's zone): the reader converts them to the "
+        "camera's zone for the slots and reads the author's MATLAB v7.3 .mat sun angles. "
+        "Synthetic world version 3 names its frames in UTC (image_id changes; an older "
+        "rendering is rendered again) and writes a v7.3 .mat per frame; times and slots are "
+        "as before.",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges on snowy days. Ground-truth "
@@ -32,9 +38,17 @@ class Builder(builder.RepeatabilityBuilder):
     (default <data_dir>/downloads/manual/, or --manual-dir):
 
         <manual_dir>/<scene>/YYYYMMDD_HHMMSS.jpg      (or <manual_dir>/images/<scene>/...)
-        <manual_dir>/<scene>/scene.json               optional {"timezone": "America/..."}
+        <manual_dir>/<scene>/YYYYMMDD_HHMMSS.mat      optional sun angles (MATLAB v5 or v7.3)
+        <manual_dir>/<scene>/scene.json               optional {"timezone": "America/...",
+                                                      "name_timezone": "America/New_York",
+                                                      "latitude": .., "longitude": ..}
         <manual_dir>/<scene>/metadata.csv             optional name,datetime overrides
         <manual_dir>/segmentation/<scene>/<stem>.png  optional category maps
+
+    timezone is the camera's zone (slots are read on its wall clock); name_timezone the
+    zone the file names are written in (default data_specs' default_name_timezone,
+    US/Eastern as in the author's sample; "UTC" for AMOS). With latitude/longitude the
+    sun angles of the .mat files are checked against the times read (a warning if off).
 
     Name the train and test scenes in data_specs/webcam_clipart.json (splits.real); if
     they are not named, the last scene in sorted order is the test scene.

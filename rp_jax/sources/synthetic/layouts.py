@@ -26,8 +26,10 @@ import dataclasses
 import datetime as dt
 import io
 import json
+import math
 import os
 import re
+import zoneinfo
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -39,12 +41,15 @@ from rp_jax.sources.capture import Camera
 __all__ = [
     "BAYER_TO_RGB",
     "CMU_NAME_RE",
+    "CMU_QUERY_POSES_DIR",
     "CMU_REAL_CAMERAS",
     "G_CAMERA_IMAGE",
     "INS_HEADER",
+    "MATLAB_V73_HEADER",
     "ROBOTCAR_FOLDER_RE",
     "ROBOTCAR_STEREO_CENTRE",
     "WEBCAM_NAME_RE",
+    "WEBCAM_NAME_TIMEZONE",
     "ColmapImage",
     "ColmapPoint",
     "bayer_mosaic",
@@ -66,11 +71,14 @@ __all__ = [
     "write_bytes_atomic",
     "write_cmu_intrinsics",
     "write_cmu_poses",
+    "write_cmu_query_poses",
     "write_colmap_text",
     "write_image_atomic",
+    "write_matlab_v73",
     "write_name_list",
     "write_text_atomic",
     "write_webcam_scene_sidecar",
+    "write_webcam_sun_angles",
 ]
 
 
@@ -213,25 +221,102 @@ def scale_camera(camera: Camera, width: int, height: int) -> Camera:
 # --------------------------------------------------------------------------- Webcam Clip Art
 
 WEBCAM_NAME_RE = re.compile(r"^(\d{8})_(\d{6})\.jpg$")
+# The clock the synthetic world writes frame names on: UTC, as the AMOS archive does (the
+# author's own sample uses US/Eastern whatever the camera's zone). The scene's sidecar
+# names it (``name_timezone``); slots are still read on the camera's own wall clock.
+WEBCAM_NAME_TIMEZONE = "UTC"
 
 
-def webcam_image_name(local_time: dt.datetime) -> str:
-    """``YYYYMMDD_HHMMSS.jpg`` on the camera's local wall clock (seconds truncated)."""
-    return local_time.strftime("%Y%m%d_%H%M%S") + ".jpg"
+def webcam_image_name(when: dt.datetime, name_timezone: str = WEBCAM_NAME_TIMEZONE) -> str:
+    """``YYYYMMDD_HHMMSS.jpg`` of an instant on the ``name_timezone`` clock (seconds truncated).
+
+    Args:
+      when: a timezone-aware capture time (any zone).
+      name_timezone: the IANA zone the names are written in (default UTC, as AMOS).
+    """
+    if when.tzinfo is None or when.tzinfo.utcoffset(when) is None:
+        raise ValueError(f"need a timezone-aware datetime, got naive {when.isoformat()}")
+    return when.astimezone(zoneinfo.ZoneInfo(name_timezone)).strftime("%Y%m%d_%H%M%S") + ".jpg"
 
 
 def write_webcam_scene_sidecar(
-    scene_dir: Path, *, timezone: str, latitude: float, longitude: float, **extra
+    scene_dir: Path,
+    *,
+    timezone: str,
+    latitude: float,
+    longitude: float,
+    name_timezone: str = WEBCAM_NAME_TIMEZONE,
+    **extra,
 ) -> Path:
-    """Write ``<scene>/scene.json``: the scene's zone and location, read by the reader.
+    """Write ``<scene>/scene.json``: the scene's zones and location, read by the reader.
 
-    The frame names stay authoritative for times; this sidecar only says which wall clock
-    they are on (a real reader falls back to ``data_specs`` when it is absent). ``extra``
-    keys (e.g. ``"synthetic": {...}``) are kept for people, ignored by the reader.
+    ``timezone`` is the camera's own zone (slots are read on its wall clock);
+    ``name_timezone`` the zone the frame names are written in. The frame names stay
+    authoritative for times; a real reader falls back to ``data_specs`` when the sidecar
+    is absent. ``extra`` keys (e.g. ``"synthetic": {...}``) are kept for people, ignored
+    by the reader.
     """
-    payload = {"timezone": timezone, "latitude": float(latitude), "longitude": float(longitude)}
+    payload = {
+        "timezone": timezone,
+        "name_timezone": name_timezone,
+        "latitude": float(latitude),
+        "longitude": float(longitude),
+    }
     payload.update(extra)
     return write_text_atomic(Path(scene_dir) / "scene.json", json.dumps(payload, indent=2) + "\n")
+
+
+# MATLAB's 128-byte header of a v7.3 MAT-file, which sits in the HDF5 file's user block:
+# 116 bytes of text, 8 bytes of subsystem offset, version 0x0200 and the endian mark "IM".
+MATLAB_V73_HEADER = (
+    (
+        b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Thu Jan  1 00:00:00 1970 "
+        b"HDF5 schema 1.00 ."
+    ).ljust(116, b" ")
+    + b"\x00" * 8
+    + b"\x00\x02"
+    + b"IM"
+)
+
+
+def write_matlab_v73(path: Path, scalars: Mapping[str, float]) -> Path:
+    """Write a MATLAB v7.3 MAT-file of top-level double scalars, atomically.
+
+    v7.3 files are HDF5 behind a 512-byte user block holding MATLAB's header; each double
+    is a (1, 1) dataset with ``MATLAB_class = "double"``, so MATLAB, h5py and the reader
+    read it (``scipy.io.loadmat`` does not read v7.3).
+    """
+    import h5py  # only the writers of .mat files need it
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_name(path)
+    with h5py.File(tmp, "w", userblock_size=512, track_order=True) as f:
+        for key, value in scalars.items():
+            ds = f.create_dataset(
+                key, data=np.array([[float(value)]], dtype=np.float64), track_times=False
+            )
+            ds.attrs["MATLAB_class"] = np.bytes_("double")
+    with open(tmp, "r+b") as f:
+        f.write(MATLAB_V73_HEADER.ljust(512, b"\x00"))
+    os.replace(tmp, path)
+    return path
+
+
+def write_webcam_sun_angles(image_path: Path, zenith_deg: float, azimuth_deg: float) -> Path:
+    """Write the frame's ``<stem>.mat`` as the author's release does: MATLAB v7.3 with
+    top-level ``sunZenith`` and ``sunAzimuth`` in radians, the azimuth as minus the compass
+    azimuth (clockwise from north), which is how the author's files appear to store it.
+
+    Args:
+      image_path: the frame (``YYYYMMDD_HHMMSS.jpg``); the .mat goes beside it.
+      zenith_deg: the sun's zenith angle in degrees.
+      azimuth_deg: the sun's compass azimuth in degrees, clockwise from north.
+    """
+    return write_matlab_v73(
+        Path(image_path).with_suffix(".mat"),
+        {"sunZenith": math.radians(zenith_deg), "sunAzimuth": -math.radians(azimuth_deg)},
+    )
 
 
 # --------------------------------------------------------------------------- Extended CMU Seasons
@@ -302,6 +387,54 @@ def format_cmu_poses(entries: Iterable[tuple[str, np.ndarray, np.ndarray]]) -> s
 def write_cmu_poses(path: Path, entries: Iterable[tuple[str, np.ndarray, np.ndarray]]) -> Path:
     """Write a ``ground-truth-*-images-slice{N}.txt`` file (see ``format_cmu_poses``)."""
     return write_text_atomic(path, format_cmu_poses(entries))
+
+
+CMU_QUERY_POSES_DIR = "camera-poses"
+_CMU_QUERY_POSES_FILE = re.compile(r"^query-poses-\d{8}\.txt$")
+_CMU_TIMEZONE = "America/New_York"
+
+
+def write_cmu_query_poses(
+    slice_dir: Path, entries: Iterable[tuple[str, np.ndarray, np.ndarray]]
+) -> list[Path]:
+    """Write a slice's query ground truth where the release ships it: ``camera-poses/*.txt``.
+
+    The lines are those of the database file (``format_cmu_poses``: ``name qw qx qy qz cx cy
+    cz``), one file per capture date, ``slice{N}/camera-poses/query-poses-YYYYMMDD.txt``
+    (the date of the name's timestamp in America/New_York). Readers glob
+    ``camera-poses/*.txt``, so the file names carry no meaning. The call writes the slice's
+    whole query ground truth: files an earlier call wrote there for other dates are
+    removed. Queries left out of ``entries`` simply have no pose, as about half of the real
+    ones.
+
+    Args:
+      slice_dir: the ``slice{N}`` folder.
+      entries: ``(name, R, t)`` with ``name`` an ``img_<i>_<c0|c1>_<unix_us>us.jpg`` file
+        name and R, t world-to-camera.
+
+    Returns:
+      The files written, sorted.
+    """
+    folder = Path(slice_dir) / CMU_QUERY_POSES_DIR
+    tz = zoneinfo.ZoneInfo(_CMU_TIMEZONE)
+    by_date: dict[str, list[tuple[str, np.ndarray, np.ndarray]]] = {}
+    for name, R, t in entries:
+        match = CMU_NAME_RE.match(Path(name).name)
+        if not match:
+            raise ValueError(f"{name!r} is not an img_<i>_<c0|c1>_<unix_us>us.jpg name")
+        utc = dt.datetime(1970, 1, 1, tzinfo=dt.UTC) + dt.timedelta(
+            microseconds=int(match.group(3))
+        )
+        by_date.setdefault(utc.astimezone(tz).strftime("%Y%m%d"), []).append((name, R, t))
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [
+        write_cmu_poses(folder / f"query-poses-{date}.txt", rows)
+        for date, rows in sorted(by_date.items())
+    ]
+    for stale in folder.iterdir():
+        if _CMU_QUERY_POSES_FILE.match(stale.name) and stale not in written:
+            stale.unlink()
+    return written
 
 
 def write_name_list(path: Path, names: Iterable[str]) -> Path:

@@ -15,9 +15,18 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   12:47...) that the reader must leave unassigned. Each frame has a sub-pixel-to-1-px
   rotation jitter. Layout::
 
-      <out>/<scene>/YYYYMMDD_HHMMSS.jpg          local time of the scene
-      <out>/<scene>/scene.json                   {"timezone", "latitude", "longitude", ...}
+      <out>/<scene>/YYYYMMDD_HHMMSS.jpg          the capture instant in UTC (as AMOS names)
+      <out>/<scene>/YYYYMMDD_HHMMSS.mat          MATLAB v7.3: sunZenith, sunAzimuth (radians)
+      <out>/<scene>/scene.json                   {"timezone", "name_timezone": "UTC",
+                                                  "latitude", "longitude", ...}
       <out>/segmentation/<scene>/<stem>.png      uint8 category ids (rp_jax/categories.py)
+
+  As in the real releases, the names are not on the camera's clock: they are UTC (AMOS's
+  convention; the author's sample uses US/Eastern), and ``scene.json`` gives both zones, so
+  the reader converts them to the camera's wall clock for the slots. Each frame's ``.mat``
+  holds the sun at its instant and place (``sun.solar_position``, geometric) as the
+  author's files do: v7.3, radians, the azimuth as minus the compass azimuth; the reader
+  checks the names' clock against it.
 
 ``cmu_seasons``
   A car drives one street per slice on the paper's 12 dates (2010-09-01 ... 2011-07-28,
@@ -32,7 +41,9 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
       <out>/slice{N}/ground-truth-database-images-slice{N}.txt   name qw qx qy qz cx cy cz
       <out>/slice{N}/test-images-slice{N}.txt                    query names
       <out>/slice{N}/sparse/{cameras,images,points3D}.txt        COLMAP model (reference)
-      <out>/_evaluation/ground-truth-query-images-slice{N}.txt   query poses, kept apart
+      <out>/slice{N}/camera-poses/query-poses-YYYYMMDD.txt       query poses, as released
+      <out>/_evaluation/ground-truth-query-images-slice{N}.txt   the same, where older
+                                                                 layouts kept them
       <out>/segmentation/slice{N}/{database,query}/<stem>.png
 
   Database and query, what we chose: the real dataset puts the reference traversal in
@@ -41,7 +52,9 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   truth poses), so for the TRAIN slices 6, 7, 9 every date is in ``database/`` with its
   pose in the ground-truth file and ``query/`` is empty; for the TEST slice 8 the
   reference traversal is in ``database/`` and the 11 other dates are queries, listed in
-  ``test-images-slice8.txt`` with their poses in ``_evaluation/``. The reference traversal
+  ``test-images-slice8.txt`` with their poses in ``camera-poses/`` (where the release ships
+  the poses of about half of its queries; here all have one) and, as before, in
+  ``_evaluation/``. The reference traversal
   is ``REFERENCE_DATE``: the paper's Apr 21, 2011, a leafless spring day standing for the
   real reference condition (sunny, no foliage; DATA_FORMATS.md notes the README's Apr 4
   where the paper has Apr 21). It is one constant: change it there if needed. ``sparse/`` holds the reference traversal only: 3D points are SIFT
@@ -49,7 +62,7 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   depth edges skipped); a point's track holds every reference image where it projects
   inside, at the depth that image rendered there (visibility), within 1.5 px of one of its
   SIFT keypoints. The model is in COLMAP's pixel convention (+0.5, see ``layouts``).
-  ``database{N}.db`` and ``camera-poses/`` are not written.
+  ``database{N}.db`` is not written.
 
 ``robotcar``
   The 9 traversals of the paper's Table I, at their real instants (the folder names of
@@ -99,7 +112,7 @@ import numpy as np
 from rp_jax import categories
 from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Camera
-from rp_jax.sources.synthetic import layouts
+from rp_jax.sources.synthetic import layouts, sun
 from rp_jax.sources.synthetic.route import CameraMount, LocalTangentFrame, Route, camera_pose
 
 __all__ = [
@@ -127,10 +140,13 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
-# Bumped whenever the same (preset, size, seed) renders different pixels; a layout rendered
-# by another version is rendered again (``rp_jax.datasets.builder.ensure_synthetic``).
+# Bumped whenever the same (preset, size, seed) renders different pixels or file names; a
+# layout rendered by another version is rendered again
+# (``rp_jax.datasets.builder.ensure_synthetic``).
 # 2: foliage moves in the wind (``render.FOLIAGE_SWAY_M``).
-WORLD_VERSION = 2
+# 3: webcam frames are named on the UTC clock (the camera's wall clock before), with a v7.3
+#    .mat of sun angles each; CMU query poses also in slice{N}/camera-poses/.
+WORLD_VERSION = 3
 SIZES = ("tiny", "small", "full")
 SYNTHETIC_DIR = "_synthetic"  # per-frame side products (keypoints for the COLMAP model)
 EVALUATION_DIR = "_evaluation"
@@ -560,7 +576,7 @@ def _plan_webcam(out_dir: Path, size: str, seed: int) -> Plan:
                 # A mast sways: sub-pixel to ~1 px of rotation.
                 jitter = _small_rotation(_rng(seed, 6, i, d_idx, k), 0.6 / K[0, 0])
                 R = jitter @ R0
-                path = scene_dir / layouts.webcam_image_name(when)
+                path = scene_dir / layouts.webcam_image_name(when, layouts.WEBCAM_NAME_TIMEZONE)
                 jobs.append(
                     FrameJob(
                         scene=scene_spec,
@@ -581,6 +597,7 @@ def _plan_webcam(out_dir: Path, size: str, seed: int) -> Plan:
                 scene_dir,
                 {
                     "timezone": tz_name,
+                    "name_timezone": layouts.WEBCAM_NAME_TIMEZONE,
                     "latitude": lat,
                     "longitude": lon,
                     "synthetic": {
@@ -598,6 +615,11 @@ def _plan_webcam(out_dir: Path, size: str, seed: int) -> Plan:
     def finalize():
         for scene_dir, payload in sidecars:
             layouts.write_webcam_scene_sidecar(scene_dir, **payload)
+        for job in jobs:
+            elevation, azimuth = sun.solar_position(
+                sun.unix_seconds(job.when), job.scene.latitude, job.scene.longitude
+            )
+            layouts.write_webcam_sun_angles(job.image_path, 90.0 - float(elevation), float(azimuth))
 
     return Plan("webcam_clipart", out_dir, jobs, finalize)
 
@@ -751,6 +773,9 @@ def _plan_cmu(out_dir: Path, size: str, seed: int) -> Plan:
                 [name for name, _, _ in poses[slice_id]["query"]],
             )
             if poses[slice_id]["query"]:
+                # Where the release ships query poses; _evaluation/ as layouts of world
+                # version 2 had them (the reader merges both).
+                layouts.write_cmu_query_poses(slice_dir, poses[slice_id]["query"])
                 layouts.write_cmu_poses(
                     out_dir / EVALUATION_DIR / f"ground-truth-query-images-slice{slice_id}.txt",
                     poses[slice_id]["query"],
@@ -760,7 +785,9 @@ def _plan_cmu(out_dir: Path, size: str, seed: int) -> Plan:
             out_dir / EVALUATION_DIR / "README.txt",
             "Synthetic world: ground-truth poses of the query images (same format as\n"
             "ground-truth-database-images-slice{N}.txt: name qw qx qy qz cx cy cz, the\n"
-            "world-to-camera quaternion and the camera centre). Real data has none.\n",
+            "world-to-camera quaternion and the camera centre). The same poses are in\n"
+            "slice{N}/camera-poses/, where the real release ships those of about half\n"
+            "of its queries.\n",
         )
 
     return Plan("cmu_seasons", out_dir, jobs, finalize)

@@ -76,6 +76,67 @@ def test_cmu_names_and_intrinsics():
     assert lines[1].startswith("c1 OPENCV 1024 768 873.382641")
 
 
+def test_cmu_query_poses_go_to_camera_poses(tmp_path):
+    """``write_cmu_query_poses`` writes slice{N}/camera-poses/*.txt (one file per capture
+    date), which the reader reads back; a later call replaces what an earlier one wrote."""
+    from rp_jax.sources import cmu_seasons
+
+    ny = zoneinfo.ZoneInfo("America/New_York")
+    rng = np.random.default_rng(3)
+    entries = []
+    for k, day in enumerate([(2010, 9, 1), (2010, 9, 1), (2010, 12, 21)]):
+        R = _random_rotation(rng)
+        name = layouts.cmu_image_name(k, "c0", dt.datetime(*day, 11, 0, k, tzinfo=ny))
+        entries.append((name, R, rng.normal(0, 5, 3)))
+    slice_dir = tmp_path / "slice8"
+    written = layouts.write_cmu_query_poses(slice_dir, entries)
+    assert [p.name for p in written] == ["query-poses-20100901.txt", "query-poses-20101221.txt"]
+    poses = cmu_seasons.read_query_ground_truth(tmp_path, 8)
+    assert sorted(poses) == sorted(n for n, _, _ in entries)
+    for name, R, t in entries:
+        np.testing.assert_allclose(poses[name][0], R, atol=1e-8)
+        np.testing.assert_allclose(poses[name][1], t, atol=1e-6)
+    # Half of them only (as in the release): the December file goes, others are kept.
+    (slice_dir / "camera-poses" / "notes.txt").write_text("")
+    layouts.write_cmu_query_poses(slice_dir, entries[:1])
+    assert sorted(p.name for p in (slice_dir / "camera-poses").iterdir()) == [
+        "notes.txt",
+        "query-poses-20100901.txt",
+    ]
+    assert list(cmu_seasons.read_query_ground_truth(tmp_path, 8)) == [entries[0][0]]
+    with pytest.raises(ValueError, match="img_"):
+        layouts.write_cmu_query_poses(slice_dir, [("photo.jpg", np.eye(3), np.zeros(3))])
+
+
+def test_webcam_names_on_the_utc_clock():
+    phoenix = dt.datetime(2010, 6, 1, 5, 35, 12, tzinfo=zoneinfo.ZoneInfo("America/Phoenix"))
+    assert layouts.webcam_image_name(phoenix) == "20100601_123512.jpg"  # UTC, as AMOS
+    assert layouts.webcam_image_name(phoenix, "America/New_York") == "20100601_083512.jpg"
+    with pytest.raises(ValueError, match="timezone-aware"):
+        layouts.webcam_image_name(dt.datetime(2010, 6, 1, 8, 0))
+
+
+def test_sun_angles_written_as_matlab_v73(tmp_path):
+    import h5py
+    import scipy.io.matlab
+
+    from rp_jax.sources import webcam_clipart
+
+    path = layouts.write_webcam_sun_angles(tmp_path / "20100601_123512.jpg", 60.0, 95.0)
+    assert path.name == "20100601_123512.mat"
+    assert scipy.io.matlab.matfile_version(str(path)) == (2, 0)
+    assert path.read_bytes()[:19] == b"MATLAB 7.3 MAT-file"
+    with h5py.File(path, "r") as f:
+        assert f["sunZenith"].shape == (1, 1)
+        assert f["sunZenith"].attrs["MATLAB_class"] == b"double"
+        np.testing.assert_allclose(f["sunZenith"][0, 0], np.radians(60.0))
+        np.testing.assert_allclose(f["sunAzimuth"][0, 0], -np.radians(95.0))
+    angles = webcam_clipart.read_sun_angles(path)
+    assert angles["sunZenith"] == pytest.approx(60.0) and angles["sunAzimuth"] == pytest.approx(
+        -95.0
+    )
+
+
 def test_scale_camera_keeps_rays():
     cam = layouts.CMU_REAL_CAMERAS["c0"]
     small = layouts.scale_camera(cam, 256, 192)

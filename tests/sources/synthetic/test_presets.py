@@ -18,13 +18,15 @@ import zoneinfo
 from pathlib import Path
 
 import cv2
+import h5py
 import numpy as np
 import pycolmap
 import pytest
+import scipy.io.matlab
 
 from rp_jax import categories
 from rp_jax.schedule import preset as schedule_preset
-from rp_jax.sources.synthetic import layouts, presets
+from rp_jax.sources.synthetic import layouts, presets, sun
 from rp_jax.sources.synthetic.route import rotation_ned
 
 # --------------------------------------------------------------------------- a tiny exact world
@@ -122,17 +124,32 @@ def test_webcam_layout(fake_world, tmp_path):
     scenes = sorted(p.name for p in out.iterdir() if p.is_dir() and p.name.startswith("scene_"))
     assert scenes == ["scene_00", "scene_07"]
     schedule = schedule_preset("webcam_clipart")
+    jobs = {j.image_path: j for j in presets.plan("webcam_clipart", out, size="tiny", seed=3).jobs}
     for scene in scenes:
         meta = json.loads((out / scene / "scene.json").read_text())
         tz = zoneinfo.ZoneInfo(meta["timezone"])
+        # Names on the UTC clock, as AMOS's (not the camera's): the sidecar says which.
+        assert meta["name_timezone"] == "UTC"
         frames = sorted((out / scene).glob("*.jpg"))
         assert frames
         days, assigned, unassigned = set(), 0, 0
         for f in frames:
             m = layouts.WEBCAM_NAME_RE.match(f.name)
             assert m, f.name
-            when = dt.datetime.strptime(m.group(1) + m.group(2), "%Y%m%d%H%M%S").replace(tzinfo=tz)
+            named = dt.datetime.strptime(m.group(1) + m.group(2), "%Y%m%d%H%M%S")
+            when = named.replace(tzinfo=dt.UTC).astimezone(tz)
+            assert 0 <= (jobs[f].when - when).total_seconds() < 1  # seconds truncated
             days.add(when.date())
+            # The sun of the frame's instant and place, as the author's v7.3 files hold it.
+            mat = f.with_suffix(".mat")
+            assert scipy.io.matlab.matfile_version(str(mat))[0] == 2  # MATLAB v7.3
+            with h5py.File(mat, "r") as h:
+                zenith, azimuth = float(h["sunZenith"][0, 0]), float(h["sunAzimuth"][0, 0])
+            elevation, compass = sun.solar_position(
+                jobs[f].when.timestamp(), meta["latitude"], meta["longitude"]
+            )
+            np.testing.assert_allclose(np.degrees(zenith), 90.0 - elevation, atol=1e-9)
+            np.testing.assert_allclose(-np.degrees(azimuth), compass, atol=1e-9)
             slot = schedule.slot_of(when, strict=False)
             assigned += slot is not None
             unassigned += slot is None
@@ -258,6 +275,22 @@ def test_cmu_layout_and_model(fake_world, tmp_path):
             assert qu and db
             qgt = _read_poses(out / "_evaluation" / "ground-truth-query-images-slice8.txt")
             assert sorted(qgt) == qu
+            # The same poses where the release ships them: camera-poses/*.txt, by date.
+            files = sorted((sdir / "camera-poses").glob("*.txt"))
+            query_days = {
+                dt.datetime.fromtimestamp(int(name_re.fullmatch(n).group(3)) / 1e6, ny).date()
+                for n in qu
+            }
+            assert [f.name for f in files] == [
+                f"query-poses-{d:%Y%m%d}.txt" for d in sorted(query_days)
+            ]
+            released = {}
+            for f in files:
+                released.update(_read_poses(f))
+            assert sorted(released) == qu
+            for name, (R, t) in released.items():
+                np.testing.assert_allclose(R, qgt[name][0], atol=1e-9)
+                np.testing.assert_allclose(t, qgt[name][1], atol=1e-6)
             db_days = {
                 dt.datetime.fromtimestamp(int(name_re.fullmatch(n).group(3)) / 1e6, ny).date()
                 for n in db
