@@ -47,7 +47,8 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
       <out>/segmentation/slice{N}/{database,query}/<stem>.png
 
   Database and query, what we chose: the real dataset puts the reference traversal in
-  ``database/`` (poses public) and the other dates in ``query/`` (poses withheld). The
+  ``database/`` (poses public) and the other dates in ``query/`` (poses of about half of
+  them in ``camera-poses/``, the rest withheld). The
   paper's training labels need every date with a pose (it triangulates with the ground-
   truth poses), so for the TRAIN slices 6, 7, 9 every date is in ``database/`` with its
   pose in the ground-truth file and ``query/`` is empty; for the TEST slice 8 the
