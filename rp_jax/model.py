@@ -22,7 +22,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-__all__ = ["gem_pool", "GeM", "PatchEncoder", "RepeatabilityPredictor", "space_to_depth"]
+__all__ = ["gem_pool", "GeM", "PatchEncoder", "RepeatabilityPredictor", "space_to_depth",
+           "create_model", "init_params", "preprocess_patches"]
 
 GEM_EPS = 1e-6
 
@@ -128,6 +129,39 @@ class RepeatabilityPredictor(nn.Module):
         z3 = nn.relu(nn.Dense(64, name="fc5")(h))
         z = GeM(self.gem_init_p, name="gem")(jnp.stack([z1, z2, z3], axis=0))
         return nn.sigmoid(nn.Dense(self.num_timestamps, name="fc6")(z))
+
+
+DTYPES = {"float32": jnp.float32, "bfloat16": jnp.bfloat16}
+
+
+def create_model(config, num_timestamps: int) -> RepeatabilityPredictor:
+    """The RP network of Sec. III-B sized by ``config.model`` (the run's config).
+
+    Args:
+      config: a config with a ``model`` group (``rp_jax/configs/default.py``):
+        ``encoder_channels``, ``encoder_features``, ``gem_init_p``, ``dtype``.
+      num_timestamps: T, the length of the output.
+    """
+    if config.model.dtype not in DTYPES:
+        raise ValueError(f"config.model.dtype must be one of {sorted(DTYPES)}, "
+                         f"got {config.model.dtype!r}")
+    return RepeatabilityPredictor(
+        num_timestamps=num_timestamps,
+        encoder_channels=tuple(config.model.encoder_channels),
+        encoder_features=config.model.encoder_features,
+        gem_init_p=config.model.gem_init_p,
+        dtype=DTYPES[config.model.dtype],
+    )
+
+
+def init_params(net: RepeatabilityPredictor, rng, num_time_features: int) -> dict:
+    """Initial ``params`` of ``net`` for a time input of ``num_time_features`` (d) values.
+
+    Under ``jax.eval_shape`` it gives the params' shapes without computing anything (what a
+    checkpoint is restored into).
+    """
+    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
+                    jnp.zeros((1, num_time_features)))["params"]
 
 
 def preprocess_patches(patches: jnp.ndarray) -> jnp.ndarray:

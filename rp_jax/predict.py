@@ -28,9 +28,10 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-import orbax.checkpoint as ocp
+from jax.sharding import NamedSharding, PartitionSpec as P
 
-from rp_jax import model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax import checkpoints, model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax.platform import make_mesh
 
 __all__ = ["Predictor", "load", "repeatability", "at_time", "encode_times"]
 
@@ -49,10 +50,8 @@ def repeatability(params, patches, xy, time_features, *, config) -> jax.Array:
     Returns:
       [N, T] float32 repeatability scores in (0, 1).
     """
-    from rp_jax.train import create_model  # late import: train imports optax/orbax
-
     T = params["fc6"]["bias"].shape[-1]
-    net = create_model(config, T)
+    net = model_lib.create_model(config, T)
     patches = jnp.asarray(patches)
     if jnp.issubdtype(patches.dtype, jnp.integer):
         x = model_lib.preprocess_patches(patches)
@@ -119,10 +118,6 @@ class Predictor:
     def __post_init__(self):
         # Data parallel over the local devices (e.g. the 2 CPU devices of
         # rp_jax.platform.configure_cpu), as in training: the batch is split, params replicated.
-        from jax.sharding import NamedSharding, PartitionSpec as P
-
-        from rp_jax.train import make_mesh
-
         mesh = make_mesh(0)
         n_dev = mesh.devices.size
         self.batch_size = -(-self.batch_size // n_dev) * n_dev  # a multiple of the devices
@@ -189,23 +184,25 @@ def load(workdir: str | os.PathLike, *, step: int | None = None, batch_size: int
         its config.
     """
     workdir = Path(workdir).absolute()
-    cfg_path, sched_path, ckpt_dir = workdir / "config.json", workdir / "schedule.json", workdir / "checkpoints"
+    cfg_path, sched_path = workdir / "config.json", workdir / "schedule.json"
+    ckpt_dir = workdir / checkpoints.CHECKPOINTS_DIR
     for p in (cfg_path, sched_path):
         if not p.exists():
             raise ValueError(f"{workdir} is not a trained workdir: {p.name} is missing "
                              "(expected config.json, schedule.json and checkpoints/)")
     config = ml_collections.ConfigDict(json.loads(cfg_path.read_text()))
     schedule = schedule_lib.TimeSchedule.from_dict(json.loads(sched_path.read_text()))
-    if (workdir / "best").exists() and step is None:
-        ckpt_dir = workdir / "best"  # the best validation epoch (config.keep_best)
+    if (workdir / checkpoints.BEST_DIR).exists() and step is None:
+        ckpt_dir = workdir / checkpoints.BEST_DIR  # the best validation epoch (config.keep_best)
     if not ckpt_dir.exists():
         raise ValueError(f"{workdir} has no checkpoints/ directory: train first")
-    manager = ocp.CheckpointManager(ckpt_dir)
+    manager = checkpoints.reader(ckpt_dir)
     step = manager.latest_step() if step is None else step
     if step is None:
         raise ValueError(f"{ckpt_dir} holds no checkpoint: train first")
     try:
-        restored = _restore_params(manager, step, config, schedule.num_timestamps)
+        restored = checkpoints.restore_params(manager, step,
+                                              _abstract_params(config, schedule.num_timestamps))
     except (ValueError, KeyError, TypeError) as e:
         raise ValueError(
             f"checkpoint {step} in {ckpt_dir} does not match the config in {cfg_path} "
@@ -215,16 +212,8 @@ def load(workdir: str | os.PathLike, *, step: int | None = None, batch_size: int
     return Predictor(restored, config, schedule, batch_size)
 
 
-def _restore_params(manager: ocp.CheckpointManager, step: int, config, T: int):
-    """Restore the params of a saved train state onto this host's first device.
-
-    The checkpoint may come from any device layout (e.g. 2 forced CPU devices); the target
-    tree built from the config fixes shapes, so a checkpoint of another config fails here.
-    """
-    from rp_jax.train import _state_tree, create_train_state
-
-    abstract = jax.eval_shape(lambda: _state_tree(create_train_state(config, T, 1, jax.random.key(0))))
-    device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-    target = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=device), abstract)
-    restored = manager.restore(step, args=ocp.args.StandardRestore(target))
-    return jax.tree.map(np.asarray, restored["params"])
+def _abstract_params(config, T: int):
+    """Shapes and dtypes of the params ``config`` defines (nothing is computed)."""
+    net = model_lib.create_model(config, T)
+    d = time_encoding.num_features(config.time_fields)
+    return jax.eval_shape(lambda: model_lib.init_params(net, jax.random.key(0), d))

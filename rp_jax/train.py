@@ -35,19 +35,19 @@ import orbax.checkpoint as ocp
 from flax.training import train_state
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-from rp_jax import losses, model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax import checkpoints, losses, model as model_lib, schedule as schedule_lib, time_encoding
 from rp_jax.datasets import input_pipeline
+from rp_jax.model import create_model
+from rp_jax.platform import make_mesh
 
 __all__ = [
     "TrainState",
-    "create_model",
     "create_train_state",
     "model_inputs",
     "train_step",
     "eval_step",
     "train_and_evaluate",
     "evaluate",
-    "make_mesh",
 ]
 
 log = logging.getLogger(__name__)
@@ -55,20 +55,6 @@ log = logging.getLogger(__name__)
 
 class TrainState(train_state.TrainState):
     """Flax's TrainState (params, opt_state, step, tx, apply_fn)."""
-
-
-def create_model(config: ml_collections.ConfigDict, num_timestamps: int):
-    """The RP network of Sec. III-B sized by ``config.model``."""
-    dtypes = {"float32": jnp.float32, "bfloat16": jnp.bfloat16}
-    if config.model.dtype not in dtypes:
-        raise ValueError(f"config.model.dtype must be one of {sorted(dtypes)}, got {config.model.dtype!r}")
-    return model_lib.RepeatabilityPredictor(
-        num_timestamps=num_timestamps,
-        encoder_channels=tuple(config.model.encoder_channels),
-        encoder_features=config.model.encoder_features,
-        gem_init_p=config.model.gem_init_p,
-        dtype=dtypes[config.model.dtype],
-    )
 
 
 def model_inputs(batch: dict, config: ml_collections.ConfigDict):
@@ -90,8 +76,7 @@ def _learning_rate_schedule(config, steps_per_epoch: int):
 def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -> TrainState:
     """Initialised parameters and AdamW (with clipping and a warm-up cosine schedule)."""
     net = create_model(config, num_timestamps)
-    d = time_encoding.num_features(config.time_fields)
-    params = net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)), jnp.zeros((1, d)))["params"]
+    params = model_lib.init_params(net, rng, time_encoding.num_features(config.time_fields))
     tx = optax.chain(
         optax.clip_by_global_norm(config.grad_clip),
         optax.adamw(_learning_rate_schedule(config, steps_per_epoch), weight_decay=config.weight_decay),
@@ -179,16 +164,6 @@ def eval_step(params, batch: dict, apply_fn, config) -> dict:
     }
 
 
-def make_mesh(num_devices: int = 0) -> Mesh:
-    """A 1-D ``data`` mesh over the first ``num_devices`` local devices (0 = all)."""
-    devices = jax.local_devices()
-    if num_devices:
-        if num_devices > len(devices):
-            raise ValueError(f"config.num_devices={num_devices} but only {len(devices)} local devices")
-        devices = devices[:num_devices]
-    return Mesh(np.asarray(devices), ("data",))
-
-
 @dataclasses.dataclass
 class _Compiled:
     train: Callable
@@ -232,20 +207,6 @@ def _model_batch(batch: dict) -> dict:
     return {k: batch[k] for k in keys}
 
 
-def _checkpoint_manager(workdir: Path, config) -> ocp.CheckpointManager:
-    return ocp.CheckpointManager(
-        (workdir / "checkpoints").absolute(),
-        options=ocp.CheckpointManagerOptions(max_to_keep=config.max_checkpoints_to_keep, create=True),
-    )
-
-
-def _best_manager(workdir: Path) -> ocp.CheckpointManager:
-    return ocp.CheckpointManager(
-        (workdir / "best").absolute(),
-        options=ocp.CheckpointManagerOptions(max_to_keep=1, create=True),
-    )
-
-
 def _best_val_so_far(metrics_path: Path) -> float:
     """Lowest validation MSE recorded in metrics.jsonl (inf if none): resumes model selection."""
     if not metrics_path.exists():
@@ -253,10 +214,6 @@ def _best_val_so_far(metrics_path: Path) -> float:
     vals = [json.loads(l).get("val_mse") for l in metrics_path.read_text().splitlines() if l.strip()]
     vals = [v for v in vals if v is not None]
     return min(vals) if vals else float("inf")
-
-
-def _state_tree(state: TrainState) -> dict:
-    return {"params": state.params, "opt_state": state.opt_state, "step": state.step}
 
 
 def write_run_files(workdir: Path, config, schedule: schedule_lib.TimeSchedule) -> None:
@@ -335,11 +292,11 @@ def train_and_evaluate(
     write_run_files(workdir, config, schedule)
     state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
     compiled = _compile(config, mesh, state.apply_fn)
-    manager = _checkpoint_manager(workdir, config)
+    manager = checkpoints.writer(workdir / checkpoints.CHECKPOINTS_DIR, config.max_checkpoints_to_keep)
     start_epoch = 0
     if manager.latest_step() is not None:
         restored = manager.restore(
-            manager.latest_step(), args=ocp.args.StandardRestore(_state_tree(state))
+            manager.latest_step(), args=ocp.args.StandardRestore(checkpoints.state_tree(state))
         )
         state = state.replace(params=restored["params"], opt_state=restored["opt_state"],
                               step=restored["step"])
@@ -349,7 +306,7 @@ def train_and_evaluate(
 
     metrics_path = workdir / "metrics.jsonl"
     keep_best = bool(config.get("keep_best", False)) and val_source is not None
-    best_manager = _best_manager(workdir) if keep_best else None
+    best_manager = checkpoints.writer(workdir / checkpoints.BEST_DIR, 1) if keep_best else None
     best_val = _best_val_so_far(metrics_path)
     for epoch in range(start_epoch, int(config.num_epochs)):
         t0 = time.perf_counter()
@@ -377,10 +334,11 @@ def train_and_evaluate(
         if best_manager is not None and record.get("val_mse", float("inf")) < best_val:
             best_val = record["val_mse"]
             record["best"] = True
-            best_manager.save(int(state.step), args=ocp.args.StandardSave(_state_tree(state)), force=True)
+            best_manager.save(int(state.step), force=True,
+                              args=ocp.args.StandardSave(checkpoints.state_tree(state)))
             best_manager.wait_until_finished()
         if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
-            manager.save(int(state.step), args=ocp.args.StandardSave(_state_tree(state)))
+            manager.save(int(state.step), args=ocp.args.StandardSave(checkpoints.state_tree(state)))
             manager.wait_until_finished()
         with open(metrics_path, "a") as f:
             f.write(json.dumps(record) + "\n")

@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from rp_jax import schedule as schedule_lib, train
+from rp_jax import platform, schedule as schedule_lib, train
 from rp_jax.configs import default
 from rp_jax.datasets import input_pipeline as ip, learnable_task
 
@@ -109,7 +109,7 @@ def test_one_and_two_devices_agree():
     batch = _batch(src, 64)
     results = []
     for n in (1, 2):
-        mesh = train.make_mesh(n)
+        mesh = platform.make_mesh(n)
         state = train.create_train_state(config, 21, 10, jax.random.key(0))
         compiled = train._compile(config, mesh, state.apply_fn)
         state = jax.device_put(state, compiled.replicated)

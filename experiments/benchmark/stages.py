@@ -342,13 +342,13 @@ class JaxTrainBench(ModelBench):
     def setup(self) -> dict[str, Any]:
         import jax
 
-        from rp_jax import train
+        from rp_jax import platform, train
 
         config = _model_config(self.size, self.variant, self.batch)
         records = _records(self.size, config)
         T = records["label"].shape[1]
         state = train.create_train_state(config, T, 100, jax.random.key(0))
-        mesh = train.make_mesh(config.num_devices)
+        mesh = platform.make_mesh(config.num_devices)
         # FLOPs of one step from XLA's cost analysis, on one device without sharding.
         lowered = jax.jit(lambda s, b: train.train_step(s, b, config)).lower(
             state, self._first(records)
@@ -393,7 +393,7 @@ class JaxPredictBench(ModelBench):
         from jax.sharding import NamedSharding
         from jax.sharding import PartitionSpec as P
 
-        from rp_jax import predict, time_encoding, train
+        from rp_jax import platform, predict, time_encoding, train
         from rp_jax import schedule as schedule_lib
 
         config = _model_config(self.size, self.variant, self.batch)
@@ -425,7 +425,7 @@ class JaxPredictBench(ModelBench):
             )
             self.call = lambda x, xy, t: self.predictor(x, xy, t)
         else:
-            mesh = train.make_mesh(config.num_devices)
+            mesh = platform.make_mesh(config.num_devices)
             data, rep = NamedSharding(mesh, P("data")), NamedSharding(mesh, P())
             jitted = jax.jit(fn, in_shardings=(rep, data, data, data), out_shardings=data)
             self.params = jax.device_put(params, rep)
@@ -461,7 +461,7 @@ def check_torch_equals_jax(size: dict, num_points: int = 16, seed: int = 0) -> d
     params = train.create_train_state(config, T, 100, jax.random.key(seed)).params
     batch = _batches(records, num_points, 1)[0]
     x, xy, tf = (np.array(a) for a in train.model_inputs(batch, config))  # writable copies
-    net = train.create_model(config, T)
+    net = model_lib.create_model(config, T)
     out_j = np.asarray(net.apply({"params": params}, x, xy, tf))
     enc = model_lib.PatchEncoder(
         tuple(config.model.encoder_channels), config.model.encoder_features
