@@ -20,8 +20,9 @@ from pathlib import Path
 
 import ml_collections
 import numpy as np
+from tqdm.auto import tqdm
 
-from rp_jax import evaluation, schedule as schedule_lib
+from rp_jax import evaluation, experiment, predict, schedule as schedule_lib, time_encoding, train
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
 
@@ -65,8 +66,6 @@ def _score(pred, label, mask) -> dict:
 
 
 def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedule, progress: bool) -> dict:
-    from rp_jax import experiment, predict, time_encoding, train
-
     t0 = time.perf_counter()
     train.train_and_evaluate(config, fold_dir, experiment.model_source(train_cols),
                              experiment.model_source(held_cols), schedule=schedule, progress=progress)
@@ -123,10 +122,6 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
     Returns:
       ``{"folds": {name: fold result}, "summary": summarize(...), "config": ...}``.
     """
-    from tqdm.auto import tqdm
-
-    from rp_jax import experiment
-
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     config = copy.deepcopy(config)

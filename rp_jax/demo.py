@@ -13,7 +13,11 @@ import json
 import sys
 from pathlib import Path
 
-from rp_jax import platform
+import numpy as np
+
+from rp_jax import platform, predict, schedule as schedule_lib, time_encoding, train
+from rp_jax.configs import default
+from rp_jax.datasets import input_pipeline, learnable_task
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -22,12 +26,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--epochs", type=int, default=None, help="override config.num_epochs")
     args = parser.parse_args(argv)
     platform.configure_cpu()
-
-    import numpy as np
-
-    from rp_jax import predict, schedule as schedule_lib, train
-    from rp_jax.configs import default
-    from rp_jax.datasets import input_pipeline, learnable_task
 
     config = default.get_config()
     if args.epochs is not None:
@@ -60,9 +58,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _times(rec, rp):
-    from rp_jax import time_encoding
-    import numpy as np
-
     return np.asarray(time_encoding.encode(rec["hour"], rec["minute"], rec["day"], rec["month"],
                                            fields=rp.config.time_fields, encoding=rp.config.time_encoding))
 

@@ -36,8 +36,9 @@ FIELDS = {
     "hour_of_year": ("hour", "minute", "day", "month"),
 }
 ENCODINGS = ("raw", "cyclic")
-# Days before the first of each month, 365-day year (29 Feb is read as 28 Feb).
-_MONTH_START = jnp.asarray(np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]), jnp.float32)
+# Days before the first of each month, 365-day year (29 Feb is read as 28 Feb). NumPy, not
+# jnp: a jnp array built at import time would start JAX's backend (see tests/test_imports.py).
+_MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype(np.float32)
 
 
 def num_features(fields: str) -> int:
@@ -85,7 +86,8 @@ def encode(
         return jnp.stack([values[f] for f in FIELDS[fields]], axis=-1)
     time_of_day = _angle((hour * 60.0 + minute) / 1440.0)
     month_index = jnp.clip(month.astype(jnp.int32) - 1, 0, 11)
-    day_of_year = _MONTH_START[month_index] + jnp.minimum(day, 28.0 + 3.0 * (month != 2)) - 1.0
+    day_of_month = jnp.minimum(day, 28.0 + 3.0 * (month != 2))
+    day_of_year = jnp.asarray(_MONTH_START)[month_index] + day_of_month - 1.0
     year_angle = _angle(day_of_year / 365.0)
     if fields == "time_of_day":
         return time_of_day
