@@ -131,6 +131,18 @@ SEED_FILE = "seed.json"
 # ----------------------------------------------------------------------------- queries
 
 
+def held_out_traversals(root: Path, slice_id: int, reference: set[str]) -> list:
+    """A training slice's posed database images outside its reference model, as queries.
+
+    Settings are chosen on training slices, never on the test slice: there the traversals
+    other than the reference one stand in for the queries (they have ground-truth poses).
+    """
+    caps = cmu_seasons.read(root, slices=[slice_id], include_query=False, min_group_size=1)
+    return sorted(
+        (c for c in caps if c.image_path.name not in reference), key=lambda c: c.time
+    )
+
+
 def load_queries(
     root: Path,
     slice_id: int,
@@ -138,9 +150,16 @@ def load_queries(
     max_keypoints: int,
     vocabulary: np.ndarray,
     progress: bool,
+    reference: set[str] = frozenset(),
 ) -> list[dict]:
-    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size."""
+    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size.
+
+    A slice without query images (a synthetic training slice) gives its held-out
+    traversals instead (``held_out_traversals``).
+    """
     caps = cmu_seasons.read_queries(root, slices=[slice_id])
+    if not caps:
+        caps = held_out_traversals(root, slice_id, set(reference))
     found = sorted({c.time.date() for c in caps})
     if dates:
         caps = [c for c in caps if c.time.date() in set(dates)]
@@ -292,7 +311,8 @@ def evaluate_world(
     timings["map_s"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    queries = load_queries(root, m.slice, dates, m.max_keypoints, vocabulary, progress)
+    queries = load_queries(root, m.slice, dates, m.max_keypoints, vocabulary, progress,
+                           reference={im.name for im in rec.images.values()})
     buckets: dict[dt.datetime, list[int]] = {}
     for i, q in enumerate(queries):
         buckets.setdefault(bucket(q["time"], m.time_bucket_minutes), []).append(i)

@@ -24,7 +24,10 @@ class Builder(builder.RepeatabilityBuilder):
         "1.3.0": "Real layouts: the query ground truth the release ships in "
         "slice{N}/camera-poses/*.txt is read, so the posed queries (the other dates) join "
         "the viewpoints, and the original CMU Seasons' ..._rect.jpg names are read. "
-        "Synthetic records are unchanged (world version 3 adds camera-poses/ only).",
+        "Synthetic world version 3: the reference traversal is recorded as the real one "
+        "is described (Apr 4, 2011, sunny, no foliage; it fills the paper's Apr 21 slot) and "
+        "every traversal starts between 9:00 and 16:00 local time (9:30-14:30 before), so "
+        "the synthetic records change; query poses are also written to camera-poses/.",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges; the full synthetic world is 20 "

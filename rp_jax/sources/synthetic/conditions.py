@@ -246,13 +246,17 @@ def _air_mass(el_deg: float) -> float:
     return 1.0 / (np.sin(np.radians(el)) + 0.50572 * (el + 6.07995) ** -1.6364)
 
 
-def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetime) -> Conditions:
+def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetime,
+                  weather: str | None = None) -> Conditions:
     """The capture conditions of a scene at an instant.
 
     Args:
       seed: the scene seed (weather and snow are per scene and per local date).
       latitude, longitude: degrees.
       when: timezone-aware capture instant; the local date and hour are read on its clock.
+      weather: a known day's sky (one of ``WEATHERS`` but "snow"), for a recording whose
+        conditions are documented (the CMU reference traversal: sunny); None draws the
+        day's weather. The snow on the ground still follows the season's snow pack.
 
     Returns:
       ``Conditions``.
@@ -264,6 +268,11 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
     date = when.date()
     kind, cover, wind = weather_of_day(seed, date, latitude)
     snow, snowing, snow_pattern, _ = snow_state(seed, date, latitude, longitude)
+    if weather is not None:
+        if weather not in WEATHERS or weather == "snow":
+            raise ValueError(f"weather must be one of {WEATHERS[:-1]} or None, got {weather!r}")
+        kind, snowing = weather, False
+        cover = {"clear": 0.05, "partly_cloudy": 0.45, "overcast": 0.95, "rain": 1.0}[kind]
     if snowing:
         kind, cover = "snow", 1.0
     elif kind == "rain" and abs(latitude) >= 28.0 and air_temperature(date, latitude, longitude) < 0.0:

@@ -35,12 +35,13 @@ def _slice_jobs(size: str, seed: int, slice_id: int, root: Path):
 
 
 def available_query_dates(size: str, seed: int = 0, slice_id: int = 8) -> list[dt.date]:
-    """Local dates of the synthetic preset's queries in ``slice_id`` (sorted)."""
+    """Local dates of the traversals other than the reference in ``slice_id`` (sorted).
+
+    On the test slice these are its queries; on a training slice, its held-out traversals.
+    """
     tz = zoneinfo.ZoneInfo(CMU_TIMEZONE)
     jobs = _slice_jobs(size, seed, slice_id, Path("/nonexistent-plan-only"))
-    return sorted(
-        {j.when.astimezone(tz).date() for j in jobs if j.image_path.parent.name == "query"}
-    )
+    return sorted({j.when.astimezone(tz).date() for j in jobs if j.keypoints_path is None})
 
 
 def ensure_cmu_map_layout(
@@ -59,7 +60,9 @@ def ensure_cmu_map_layout(
     the test slice's reference traversal (the map) and its queries of ``query_dates`` are
     rendered (frames already there are skipped), and the slice's metadata is written for
     those frames: ``intrinsics.txt``, the database ground truth, ``test-images-slice{N}.txt``,
-    the query ground truth in ``_evaluation/`` and the reference model ``sparse/``. A later
+    the query ground truth in ``camera-poses/`` (and ``_evaluation/``) and the reference
+    model ``sparse/``. On a training slice the other traversals stay in ``database/`` with
+    their poses (held-out traversals for choosing settings). A later
     ``rp_jax.sources.synthetic.generate`` on the same folder renders the rest and rewrites
     the metadata.
 
@@ -103,7 +106,9 @@ def ensure_cmu_map_layout(
     slice_name = f"slice{slice_id}"
     in_slice = _slice_jobs(size, seed, slice_id, root)
     reference = [j for j in in_slice if j.keypoints_path is not None]
-    queries = [j for j in in_slice if j.image_path.parent.name == "query"]
+    # A test slice's other traversals are its queries (query/); a training slice keeps
+    # them in database/ with their poses, where they serve as held-out queries.
+    queries = [j for j in in_slice if j.keypoints_path is None]
     available = sorted({j.when.astimezone(tz).date() for j in queries})
     wanted = set(query_dates)
     missing = wanted - set(available)
@@ -129,22 +134,26 @@ def ensure_cmu_map_layout(
     slice_dir = root / slice_name
     for folder in ("database", "query"):
         (slice_dir / folder).mkdir(parents=True, exist_ok=True)
+    in_query = [j for j in queries if j.image_path.parent.name == "query"]
+    in_database = reference + [j for j in queries if j.image_path.parent.name == "database"]
     layouts.write_cmu_poses(
         slice_dir / f"ground-truth-database-images-{slice_name}.txt",
-        [(j.image_path.name, j.R, j.t) for j in reference],
+        [(j.image_path.name, j.R, j.t) for j in in_database],
     )
     layouts.write_name_list(
-        slice_dir / f"test-images-{slice_name}.txt", [j.image_path.name for j in queries]
+        slice_dir / f"test-images-{slice_name}.txt", [j.image_path.name for j in in_query]
     )
-    layouts.write_cmu_poses(
-        root / presets.EVALUATION_DIR / f"ground-truth-query-images-{slice_name}.txt",
-        [(j.image_path.name, j.R, j.t) for j in queries],
-    )
+    if in_query:
+        # As the release ships them (slice{N}/camera-poses/), and in _evaluation/ as the full
+        # synthetic render also writes them.
+        entries = [(j.image_path.name, j.R, j.t) for j in in_query]
+        layouts.write_cmu_query_poses(slice_dir, entries)
+        layouts.write_cmu_poses(
+            root / presets.EVALUATION_DIR / f"ground-truth-query-images-{slice_name}.txt",
+            entries,
+        )
     presets.write_reference_model(
         slice_dir / "sparse", [(j, cam_id(j)) for j in reference], cameras
     )
     layouts.write_text_atomic(marker, json.dumps(want_marker, indent=2) + "\n")
     return root
-
-
-# ----------------------------------------------------------------------------- the map

@@ -55,10 +55,12 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   reference traversal is in ``database/`` and the 11 other dates are queries, listed in
   ``test-images-slice8.txt`` with their poses in ``camera-poses/`` (where the release ships
   the poses of about half of its queries; here all have one) and, as before, in
-  ``_evaluation/``. The reference traversal
-  is ``REFERENCE_DATE``: the paper's Apr 21, 2011, a leafless spring day standing for the
-  real reference condition (sunny, no foliage; DATA_FORMATS.md notes the README's Apr 4
-  where the paper has Apr 21). It is one constant: change it there if needed. ``sparse/`` holds the reference traversal only: 3D points are SIFT
+  ``_evaluation/``. The reference traversal is recorded as the real one is described
+  (DATA_FORMATS.md): on ``REFERENCE_DATE``, the dataset README's Apr 4, 2011 (the paper's
+  list calls that slot Apr 21; the reader snaps Apr 4 to it), sunny (``REFERENCE_WEATHER``)
+  and without foliage (leaf-out starts mid April, ``conditions.season_of_day``). Every
+  traversal starts at a time drawn between ``CMU_HOURS`` (local), so the queries span the
+  hours of the day and their shadows differ from the map's. ``sparse/`` holds the reference traversal only: 3D points are SIFT
   keypoints of the reference images back-projected with the rendered depth (keypoints on
   depth edges skipped); a point's track holds every reference image where it projects
   inside, at the depth that image rendered there (visibility), within 1.5 px of one of its
@@ -120,6 +122,7 @@ __all__ = [
     "CMU_DATES",
     "PRESET_NAMES",
     "REFERENCE_DATE",
+    "REFERENCE_WEATHER",
     "SIZES",
     "WEBCAM_CITIES",
     "FrameJob",
@@ -146,7 +149,9 @@ PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
 # (``rp_jax.datasets.builder.ensure_synthetic``).
 # 2: foliage moves in the wind (``render.FOLIAGE_SWAY_M``).
 # 3: webcam frames are named on the UTC clock (the camera's wall clock before), with a v7.3
-#    .mat of sun angles each; CMU query poses also in slice{N}/camera-poses/.
+#    .mat of sun angles each; CMU query poses also in slice{N}/camera-poses/; the CMU
+#    reference traversal as the real one is described (Apr 4, sunny, no foliage) and
+#    traversals starting between 9:00 and 16:00 (9:30-14:30 before).
 WORLD_VERSION = 3
 SIZES = ("tiny", "small", "full")
 SYNTHETIC_DIR = "_synthetic"  # per-frame side products (keypoints for the COLMAP model)
@@ -196,6 +201,7 @@ class FrameJob:
       bayer: if set, the image is written as a single-channel Bayer mosaic of this pattern.
       segmentation_path: where the category map goes (``.png``), or None.
       keypoints_path: where SIFT keypoints with their depth go (``.npz``), or None.
+      weather: the day's sky when the real recording documents it, else None (drawn).
     """
 
     scene: SceneSpec
@@ -211,6 +217,7 @@ class FrameJob:
     bayer: str | None = None
     segmentation_path: Path | None = None
     keypoints_path: Path | None = None
+    weather: str | None = None
 
     @property
     def outputs(self) -> list[Path]:
@@ -258,7 +265,8 @@ def _scene(spec: SceneSpec):
 def _render(job: FrameJob):
     from rp_jax.sources.synthetic.render import render
 
-    return render(_scene(job.scene), _make_view(job), job.when, seed=job.frame_seed)
+    return render(_scene(job.scene), _make_view(job), job.when, seed=job.frame_seed,
+                  weather=job.weather)
 
 
 # Depth edges: a keypoint whose 3x3 neighbourhood spans more than this relative depth
@@ -643,7 +651,16 @@ CMU_DATES = (
     dt.date(2011, 4, 21),
     dt.date(2011, 7, 28),
 )
-REFERENCE_DATE = dt.date(2011, 4, 21)
+# The reference (map) traversal: the benchmark README's Apr 4, 2011, sunny, no foliage.
+# It stands in the paper's Apr 21 slot, which is not recorded again.
+REFERENCE_DATE = dt.date(2011, 4, 4)
+REFERENCE_WEATHER = "clear"
+PAPER_REFERENCE_SLOT = dt.date(2011, 4, 21)
+# Recorded dates: the paper's 12 with the reference in its Apr 21 slot.
+CMU_RECORDED_DATES = tuple(REFERENCE_DATE if d == PAPER_REFERENCE_SLOT else d for d in CMU_DATES)
+# Local start time of a traversal, drawn uniformly in this range (hours): daylight on every
+# date of the year in Pittsburgh (the 21 December sun sets at 16:57 EST).
+CMU_HOURS = (9.0, 16.0)
 CMU_TIMEZONE = "America/New_York"
 CMU_LOCATION = (40.4406, -79.9959)  # Pittsburgh
 # c0 looks 45 deg left of the driving direction, c1 45 deg right; roof height ~1.9 m.
@@ -665,11 +682,11 @@ class _CmuSize:
 
 _CMU_SIZES = {
     "tiny": _CmuSize((6, 8), (CMU_DATES[0], REFERENCE_DATE, CMU_DATES[11]), 4, 3.0, 0.25),
-    "small": _CmuSize((6, 7, 8, 9), CMU_DATES, 10, 3.0, 0.5),
+    "small": _CmuSize((6, 7, 8, 9), CMU_RECORDED_DATES, 10, 3.0, 0.5),
     # Half the real 1024x768 and 20 positions (60 m) per slice: 1,920 frames, rendered and
     # labelled in about 8 minutes on 2 cores (40 positions at full resolution: 3,840
     # frames, 12 minutes of rendering alone).
-    "full": _CmuSize((6, 7, 8, 9), CMU_DATES, 20, 3.0, 0.5),
+    "full": _CmuSize((6, 7, 8, 9), CMU_RECORDED_DATES, 20, 3.0, 0.5),
 }
 
 
@@ -711,7 +728,7 @@ def _plan_cmu(out_dir: Path, size: str, seed: int) -> Plan:
         for d_idx, date in enumerate(spec.dates):
             rng = _rng(seed, 11, slice_id, date.toordinal())
             start_local = dt.datetime(date.year, date.month, date.day, tzinfo=tz) + dt.timedelta(
-                minutes=float(rng.uniform(9.5 * 60, 14.5 * 60))
+                minutes=float(rng.uniform(CMU_HOURS[0] * 60, CMU_HOURS[1] * 60))
             )
             speed = float(rng.uniform(6.0, 9.0))
             phase = float(rng.uniform(0.0, spec.spacing_m))
@@ -751,6 +768,7 @@ def _plan_cmu(out_dir: Path, size: str, seed: int) -> Plan:
                             if is_reference
                             else None
                         ),
+                        weather=REFERENCE_WEATHER if is_reference else None,
                     )
                     jobs.append(job)
                     poses[slice_id][folder].append((name, R, t))

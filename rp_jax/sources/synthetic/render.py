@@ -588,7 +588,8 @@ def _window_threshold(n_owners: int, scene_seed: int, day: int, hour: float, pro
     return (255.0 - 127.0 * p).astype(np.float32)
 
 
-def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0) -> Frame:
+def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
+           weather: str | None = None) -> Frame:
     """Renders the world as a camera records it at an instant.
 
     Args:
@@ -598,11 +599,12 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0) -> Fra
         scene's latitude/longitude; weather from (scene seed, local date); passing cars and
         people from (scene seed, instant).
       seed: sensor-noise seed of this frame (nothing else depends on it).
+      weather: the day's sky when it is known (``conditions.conditions_at``); None draws it.
 
     Returns:
       ``Frame`` with rgb, depth, category and meta.
     """
-    cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when)
+    cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when, weather)
     state = TextureState(season=cond.grass, snow=cond.snow, snow_pattern=cond.snow_pattern, foliage=cond.foliage,
                          autumn=cond.autumn)
     dyn, dyn_boxes, dyn_alpha = dynamic_quads(scene, when)

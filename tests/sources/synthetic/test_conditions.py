@@ -62,3 +62,21 @@ def test_snow_patterns_differ_between_snowfalls():
     white = [np.mean(tx.ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1) > 200)
              for s in (1, 3)]
     assert white[1] > white[0] + 0.3
+
+
+def test_a_documented_sky_overrides_the_drawn_weather():
+    import datetime as dt
+    import zoneinfo
+
+    import pytest
+
+    from rp_jax.sources.synthetic import conditions
+
+    when = dt.datetime(2011, 4, 4, 11, 0, tzinfo=zoneinfo.ZoneInfo("America/New_York"))
+    drawn = {conditions.conditions_at(s, 40.44, -80.0, when).weather for s in range(12)}
+    assert len(drawn) > 1  # the drawn weather varies by scene
+    for s in range(12):
+        c = conditions.conditions_at(s, 40.44, -80.0, when, "clear")
+        assert c.weather == "clear" and c.cloud_cover < 0.1 and c.sun_rgb.sum() > 0
+    with pytest.raises(ValueError, match="weather"):
+        conditions.conditions_at(0, 40.44, -80.0, when, "snow")

@@ -44,3 +44,17 @@ def test_ensure_layout_renders_an_older_world_again(tmp_path, monkeypatch):
     assert not (root / "stale.jpg").exists()  # the version-1 frames are gone
     # The render was reached (Sep 01 has tiny queries): 8 reference frames + 8 queries.
     assert rendered == [(16, False)]
+
+
+def test_cmu_reference_traversal_as_the_real_one_is_described():
+    import zoneinfo
+
+    tz = zoneinfo.ZoneInfo(presets.CMU_TIMEZONE)
+    plan = presets.plan("cmu_seasons", "/nonexistent", size="small", seed=0)
+    ref = [j for j in plan.jobs if j.keypoints_path is not None]
+    other = [j for j in plan.jobs if j.keypoints_path is None]
+    assert {j.when.astimezone(tz).date() for j in ref} == {dt.date(2011, 4, 4)}
+    assert {j.weather for j in ref} == {"clear"} and {j.weather for j in other} == {None}
+    hours = [j.when.astimezone(tz).hour + j.when.astimezone(tz).minute / 60 for j in plan.jobs]
+    assert 9.0 <= min(hours) and max(hours) < 16.2  # a traversal lasts a few seconds
+    assert max(hours) - min(hours) > 4.0  # the traversals span the hours of the day
