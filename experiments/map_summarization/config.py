@@ -46,10 +46,12 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.query_dates = ()
     m.time_bucket_minutes = 10  # queries within one such bucket share a summary
     m.ratios = (0.5, 0.6, 0.7, 0.8, 0.9)  # pruned fraction of the map
-    # How the recommended ``rp`` method turns query-time RP into a summary: "top" (the
-    # paper's rule, as rp_paper) or "rp_kcover" (K-cover whose coverage weighs each point by
-    # its query-time RP score, so no database image is left bare). See the README.
+    # The recipe of the recommended ``rp`` row (experiment.RP_RECIPES: which predictor,
+    # which rule), chosen on the held-out training slice 6 (README, "Choosing rp"), and
+    # extra recipes to report as rows of their own (e.g. all of them, to choose again).
     m.rp_method = "rp_kcover"
+    m.candidates = ()
+    m.cmu_rp_epochs = {"tiny": 2, "small": 8, "full": 8}[size]  # the CMU-trained RP
     m.oracle_radius_px = 4.0  # oracle_date: a re-detection within this distance
     m.cell_size_m = 10.0  # ground-plane grid partition (Sec. V-A-2)
     m.up_axis = 2  # world axis pointing up (synthetic: z), for a diagnostic; -1 unknown

@@ -50,7 +50,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from experiments.map_summarization import report
-from experiments.map_summarization.train import train_predictor
+from experiments.map_summarization.train import train_cmu_predictor, train_predictor
 from rp_jax import experiment, plots
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize import (
@@ -88,39 +88,68 @@ from rp_jax.mapsum.statistics import (
 from rp_jax.sources import cmu_seasons
 
 __all__ = [
-    "METHODS",
     "METHOD_LABELS",
     "ORACLES",
+    "RP_RECIPES",
     "THRESHOLDS",
     "THRESHOLD_KEYS",
+    "evaluate_world",
+    "methods_of",
+    "pool",
     "run",
 ]
 
 log = logging.getLogger(__name__)
 
-METHODS = (
-    "rp_paper",
-    "rp",
-    "kcover",
-    "random",
-    "most_observed",
-    "oracle_agnostic",
-    "oracle_date",
-)
 ORACLES = ("oracle_agnostic", "oracle_date")
+BASELINES = ("kcover", "random", "most_observed")
 REFERENCE = "kcover"
+# RP recipes: (which predictor, which rule). ``rp_paper`` is the paper's protocol exactly:
+# the RobotCar RP and the most repeatable points of each part at the query time. The
+# others go beyond it: ``kcover`` = K-cover whose coverage weighs each point by its
+# query-time RP score (Cao & Snavely's weighted K-cover with RP as the match probability),
+# so no database image is left bare; ``cmu`` = the RP trained on the CMU training slices
+# (``train.cmu_config``). ``config.map.rp_method`` names the recipe of ``rp``.
+RP_RECIPES = {
+    "rp_paper": ("robotcar", "top"),
+    "rp_kcover": ("robotcar", "kcover"),
+    "rp_cmu": ("cmu", "top"),
+    "rp_cmu_kcover": ("cmu", "kcover"),
+}
 METHOD_LABELS = {
     "rp_paper": "RP, paper's protocol",
     "rp": "RP (recommended)",
+    "rp_kcover": "RobotCar RP-weighted K-cover",
+    "rp_cmu": "CMU RP, top per part",
+    "rp_cmu_kcover": "CMU RP-weighted K-cover",
     "kcover": "K-cover (minimal scene)",
     "random": "random",
     "most_observed": "most observed",
     "oracle_agnostic": "oracle: other dates' inliers",
     "oracle_date": "oracle: own date's re-detection",
 }
-# What ``config.map.rp_method`` may name: how the recommended ``rp`` turns the query-time
-# RP score into a summary (both keep the same number of points per part as every method).
-RP_METHODS = ("top", "rp_kcover")
+
+
+def methods_of(config) -> list[str]:
+    """The rows of a run: rp_paper, rp, the extra candidates, the baselines, the oracles."""
+    m = config.map
+    for name in (m.rp_method, *m.candidates):
+        if name not in RP_RECIPES:
+            raise ValueError(
+                f"unknown RP recipe {name!r} (config.map.rp_method / candidates); "
+                f"expected one of {list(RP_RECIPES)}"
+            )
+    extra = [c for c in m.candidates if c != "rp_paper"]
+    return ["rp_paper", "rp", *dict.fromkeys(extra), *BASELINES, *ORACLES]
+
+
+def recipe_of(method: str, config) -> tuple[str, str] | None:
+    """(predictor, rule) of an RP row; None for a baseline or an oracle."""
+    if method == "rp":
+        return RP_RECIPES[config.map.rp_method]
+    return RP_RECIPES.get(method)
+
+
 MIN_RP_WEIGHT = 1e-3  # K-cover weights must be positive
 THRESHOLDS = ((0.25, 2.0), (0.5, 5.0), (5.0, 10.0))
 THRESHOLD_KEYS = ("0.25m_2deg", "0.5m_5deg", "5m_10deg")
@@ -243,13 +272,16 @@ def _write_json_atomic(path: Path, payload) -> None:
 def evaluate_world(
     config: ml_collections.ConfigDict,
     seed: int,
-    predictor,
+    predictors: Mapping[str, object],
     out_dir: Path,
     *,
     fingerprint: str,
     progress: bool = True,
 ) -> dict:
     """Every method on one world (seed): per-query outcomes and per-point evidence.
+
+    ``predictors`` maps a recipe's predictor name (``"robotcar"``, ``"cmu"``) to a loaded
+    ``Predictor``; ``"robotcar"`` is required.
 
     Returns (and writes to ``out_dir/seed.json``) a dict with ``queries`` (names, dates,
     posed flags), ``outcomes`` ({method: {ratio: [[bool x 3] per query]}}), ``auc``
@@ -263,6 +295,7 @@ def evaluate_world(
             return prev
     out_dir.mkdir(parents=True, exist_ok=True)
     m = config.map
+    methods = methods_of(config)
     timings: dict[str, float] = {}
     tic = time.perf_counter()
     dates = [dt.date.fromisoformat(d) for d in m.query_dates] or None
@@ -294,14 +327,17 @@ def evaluate_world(
         rec,
         mp,
         root / f"slice{m.slice}" / "database",
-        predictor,
+        predictors["robotcar"],
         root=root,
         max_keypoints=m.max_keypoints,
         associate_px=m.associate_px,
         describe_on=m.describe_on,
         progress=progress,
+        more_predictors={k: v for k, v in predictors.items() if k != "robotcar"},
     )
-    point_rep = point_repeatability(mp, obs.repeatability)
+    point_rep = {"robotcar": point_repeatability(mp, obs.repeatability)}
+    for k, r in obs.more_repeatability.items():
+        point_rep[k] = point_repeatability(mp, r)
     point_desc = mean_per_point(
         obs.descriptors[obs.associated], mp.obs_point[obs.associated], mp.num_points
     )
@@ -366,13 +402,18 @@ def evaluate_world(
     }
     timings["oracle_s"] = time.perf_counter() - tic
 
-    scores_at = {b: query_scores(point_rep, predictor.schedule, b) for b in buckets}
+    scores_at = {
+        (k, b): query_scores(point_rep[k], predictors[k].schedule, b)
+        for k in point_rep
+        for b in buckets
+    }
     track = mp.track_length.astype(np.float64)
 
     def score(method: str, b: dt.datetime) -> np.ndarray | None:
         """Query-time ranking score of a score-based method (None: a set method)."""
-        if method in ("rp_paper", "rp"):
-            return scores_at[b]
+        recipe = recipe_of(method, config)
+        if recipe is not None:
+            return scores_at[(recipe[0], b)]
         if method == "most_observed":
             return track
         if method == "random":
@@ -391,8 +432,9 @@ def evaluate_world(
     def summary(method: str, ratio: float, b: dt.datetime) -> np.ndarray:
         if method == "kcover":
             return kcover_keep(mp, ratio, parts, **kcover_kwargs)
-        if method == "rp" and m.rp_method == "rp_kcover":
-            w = np.clip(np.nan_to_num(scores_at[b]), MIN_RP_WEIGHT, 1.0)
+        recipe = recipe_of(method, config)
+        if recipe is not None and recipe[1] == "kcover":
+            w = np.clip(np.nan_to_num(score(method, b)), MIN_RP_WEIGHT, 1.0)
             return kcover_keep(mp, ratio, parts, weights=w, **kcover_kwargs)
         if method == "random":
             return random_keep(mp, ratio, parts, seed=m.random_seed)
@@ -400,18 +442,18 @@ def evaluate_world(
             return most_observed_keep(mp, ratio, parts)
         return prune_by_score(score(method, b), parts, ratio)
 
-    time_dependent = {"rp_paper", "rp", "oracle_agnostic", "oracle_date"}
+    time_dependent = {k for k in methods if recipe_of(k, config) is not None} | set(ORACLES)
     ratios = [float(r) for r in m.ratios]
-    outcomes: dict[str, dict[str, list]] = {k: {} for k in METHODS}
-    coverage: dict[str, dict[str, list[float]]] = {k: {} for k in METHODS}
-    kept_count: dict[str, dict[str, list[int]]] = {k: {} for k in METHODS}
-    method_s = {k: 0.0 for k in METHODS}
-    bar = tqdm(total=len(ratios) * len(METHODS), desc=f"seed {seed} summaries", leave=False,
+    outcomes: dict[str, dict[str, list]] = {k: {} for k in methods}
+    coverage: dict[str, dict[str, list[float]]] = {k: {} for k in methods}
+    kept_count: dict[str, dict[str, list[int]]] = {k: {} for k in methods}
+    method_s = {k: 0.0 for k in methods}
+    bar = tqdm(total=len(ratios) * len(methods), desc=f"seed {seed} summaries", leave=False,
                disable=not progress)
     tic = time.perf_counter()
     for ratio in ratios:
         key = f"{ratio:.1f}"
-        for method in METHODS:
+        for method in methods:
             t0 = time.perf_counter()
             shared = None if method in time_dependent else summary(method, ratio, next(iter(buckets)))
             est: dict[str, tuple | None] = {}
@@ -447,13 +489,11 @@ def evaluate_world(
         summary("kcover", r, next(iter(buckets))).astype(float) for r in ratios
     )
     auc: dict[str, dict[str, float | None]] = {}
-    pairs: dict[str, list] = {k: [] for k in METHODS}
+    pairs: dict[str, list] = {k: [] for k in methods}
     labels: list[np.ndarray] = []
     pair_date: list[np.ndarray] = []
     for b, rows in buckets.items():
-        per_method = {k: (score(k, b) if k != "kcover" else kc_rank) for k in METHODS}
-        if m.rp_method == "rp_kcover":
-            per_method["rp"] = scores_at[b]
+        per_method = {k: (score(k, b) if k != "kcover" else kc_rank) for k in methods}
         for i in rows:
             r = full_results[i]
             if not r.success:
@@ -462,19 +502,19 @@ def evaluate_world(
             lab = np.isin(cand, r.inlier_points)
             labels.append(lab)
             pair_date.append(np.full(len(cand), queries[i]["date"].toordinal()))
-            for k in METHODS:
+            for k in methods:
                 pairs[k].append(per_method[k][cand])
     if labels:
         lab = np.concatenate(labels)
         pdate = np.concatenate(pair_date)
-        for k in METHODS:
+        for k in methods:
             s = np.concatenate(pairs[k])
             auc[k] = {"all": inlier_auc(s, lab)}
             for d in query_dates:
                 sel = pdate == d.toordinal()
                 auc[k][d.isoformat()] = inlier_auc(s[sel], lab[sel])
     else:
-        auc = {k: {"all": None} for k in METHODS}
+        auc = {k: {"all": None} for k in methods}
 
     result = {
         "fingerprint": fingerprint,
@@ -514,6 +554,9 @@ def evaluate_world(
 
 def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int = 2000) -> dict:
     """Accuracy, intervals, paired tests and AUCs pooled over seeds (posed queries only)."""
+    methods = list(per_seed[0]["outcomes"])
+    if any(list(s["outcomes"]) != methods for s in per_seed):
+        raise ValueError("seeds were evaluated with different methods; re-run them")
     posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
     n = int(posed.sum())
     if n == 0:
@@ -527,7 +570,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         return a[posed]
 
     accuracy, interval, paired = {}, {}, {}
-    for method in METHODS:
+    for method in methods:
         accuracy[method], interval[method], paired[method] = {}, {}, {}
         for ratio in ratios:
             a = stacked(method, ratio)
@@ -549,7 +592,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     full_acc = {th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)}
     auc = {}
     auc_per_date: dict[str, dict[str, float | None]] = {}
-    for method in METHODS:
+    for method in methods:
         vals = [s["auc"][method]["all"] for s in per_seed if s["auc"][method]["all"] is not None]
         auc[method] = round(float(np.mean(vals)), 4) if vals else None
         dates = sorted({d for s in per_seed for d in s["auc"][method] if d != "all"})
@@ -566,7 +609,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
             }
             for ratio in ratios
         }
-        for method in METHODS
+        for method in methods
     }
     # Per date: accuracy at the main threshold, so a reader sees where methods differ.
     dates = np.concatenate([np.asarray(s["queries"]["dates"]) for s in per_seed])[posed]
@@ -574,7 +617,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     j = THRESHOLD_KEYS.index(MAIN_THRESHOLD)
     for ratio in ratios:
         per_date[ratio] = {}
-        for method in METHODS:
+        for method in methods:
             a = stacked(method, ratio)[:, j]
             per_date[ratio][method] = {
                 d: round(100.0 * float(a[dates == d].mean()), 1) for d in sorted(set(dates))
@@ -601,8 +644,7 @@ def run(
 ) -> dict:
     """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds."""
     m = config.map
-    if m.rp_method not in RP_METHODS:
-        raise ValueError(f"config.map.rp_method must be one of {RP_METHODS}, got {m.rp_method!r}")
+    methods = methods_of(config)
     if not m.seeds:
         raise ValueError("config.map.seeds is empty: give at least one world seed")
     workdir = Path(workdir).absolute()
@@ -610,14 +652,25 @@ def run(
     timings: dict[str, float] = {}
     tic = time.perf_counter()
     predictor, rp_counts = train_predictor(config, workdir / "rp", progress=progress)
+    predictors = {"robotcar": predictor}
+    training = {"robotcar": rp_counts}
     timings["rp_dataset_and_training_s"] = time.perf_counter() - tic
-    fingerprint = _fingerprint(config, predictor.params)
+    if any(recipe_of(k, config)[0] == "cmu" for k in methods if recipe_of(k, config)):
+        tic = time.perf_counter()
+        # Never train on the slice the summaries are evaluated on (a held-out training
+        # slice when choosing settings; the test slice is not a training slice anyway).
+        cmu_dir = workdir / f"rp_cmu_without_slice{m.slice}"
+        predictors["cmu"], training["cmu"] = train_cmu_predictor(
+            config, cmu_dir, exclude_slices=(int(m.slice),), progress=progress
+        )
+        timings["cmu_rp_dataset_and_training_s"] = time.perf_counter() - tic
+    fingerprint = _fingerprint(config, {k: v.params for k, v in sorted(predictors.items())})
     seeds = [0] if config.data_config == "real" or m.root else [int(s) for s in m.seeds]
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()
         per_seed.append(
-            evaluate_world(config, seed, predictor, workdir / f"seed{seed}",
+            evaluate_world(config, seed, predictors, workdir / f"seed{seed}",
                            fingerprint=fingerprint, progress=progress)
         )
         timings[f"seed{seed}_s"] = time.perf_counter() - tic
@@ -629,7 +682,7 @@ def run(
         "seeds": seeds,
         "ratios": ratios,
         "thresholds": list(THRESHOLD_KEYS),
-        "methods": list(METHODS),
+        "methods": methods,
         "oracles": list(ORACLES),
         "reference": REFERENCE,
         "rp_method": m.rp_method,
@@ -647,13 +700,18 @@ def run(
             "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
             "validation": experiment.last_validation(workdir / "rp"),
         },
+        "cmu_rp_training": {
+            **training["cmu"],
+            "validation": experiment.last_validation(workdir / f"rp_cmu_without_slice{m.slice}"),
+        } if "cmu" in training else None,
+        "slice": int(m.slice),
         "dataset": {
             "rp": f"robotcar/{config.data_config}",
             "map": [s["root"] for s in per_seed],
         },
     }
     tic = time.perf_counter()
-    labels = {k: METHOD_LABELS[k] + (" [oracle]" if k in ORACLES and "oracle" not in METHOD_LABELS[k] else "") for k in METHODS}
+    labels = {k: METHOD_LABELS[k] for k in methods}
     figures = [
         plots.plot_accuracy_vs_pruning(
             metrics["accuracy"], workdir / "fig11_accuracy_vs_pruning.png",

@@ -18,6 +18,7 @@ could not know.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Mapping
 from pathlib import Path
 
 import cv2
@@ -48,10 +49,13 @@ class DatabaseObservations:
       category: [n_obs] category id of the observation's pixel (-1 unknown).
       image_descriptors: image name -> [n, 128] every SIFT descriptor of the image (VLAD).
       associated: [n_obs] bool, the observation has a descriptor.
+      more_repeatability: name -> [n_obs, T_name] of the other predictors.
     """
 
-    def __init__(self, repeatability, descriptors, category, image_descriptors):
+    def __init__(self, repeatability, descriptors, category, image_descriptors,
+                 more_repeatability=None):
         self.repeatability = repeatability
+        self.more_repeatability = dict(more_repeatability or {})
         self.descriptors = descriptors
         self.category = category
         self.image_descriptors = image_descriptors
@@ -78,6 +82,7 @@ def describe_observations(
     associate_px: float,
     describe_on: str = "stored",
     progress: bool = True,
+    more_predictors: Mapping[str, object] | None = None,
 ) -> DatabaseObservations:
     """Patches -> RP, and SIFT descriptors, for every observation of the map.
 
@@ -95,6 +100,8 @@ def describe_observations(
         keypoint again); ``"undistorted"``: on the undistorted image, as the queries are
         (undistortion moves keypoints: about 2/3 associate within 1.5 px).
       progress: tqdm bar.
+      more_predictors: other predictors (name -> Predictor) run on the same patches; their
+        [n_obs, T_name] outputs are ``more_repeatability[name]``.
 
     Returns:
       The per-observation arrays (in the map's observation order).
@@ -104,6 +111,8 @@ def describe_observations(
     n_obs = map_points.num_observations
     T = predictor.num_timestamps
     rep = np.full((n_obs, T), np.nan, np.float32)
+    more = dict(more_predictors or {})
+    more_rep = {k: np.full((n_obs, v.num_timestamps), np.nan, np.float32) for k, v in more.items()}
     desc = np.full((n_obs, 128), np.nan, np.float32)
     cat = np.full(n_obs, categories.UNKNOWN, np.int64)
     image_desc: dict[str, np.ndarray] = {}
@@ -144,6 +153,8 @@ def describe_observations(
         when = cmu_seasons.capture_time(parsed[2])
         patches = extract_patches(undist, xy)
         rep[sel] = predictor(patches, xy, [when] * len(sel), image_size=(w, h))
+        for k, other in more.items():
+            more_rep[k][sel] = other(patches, xy, [when] * len(sel), image_size=(w, h))
         if len(feats):
             d, k = cKDTree(feats.xy).query(
                 xy_stored if describe_on == "stored" else xy, distance_upper_bound=associate_px
@@ -158,7 +169,7 @@ def describe_observations(
             cat[sel] = np.where(c == categories.UNLABELLED_PIXEL, categories.UNKNOWN, c)
     if np.isnan(rep).any():
         raise ValueError("some observations reference images missing from the model")
-    return DatabaseObservations(rep, desc, cat, image_desc)
+    return DatabaseObservations(rep, desc, cat, image_desc, more_rep)
 
 
 def point_categories(map_points: MapPoints, obs_category: np.ndarray) -> np.ndarray:

@@ -208,3 +208,24 @@ def test_plot_accuracy_vs_pruning_with_intervals(tmp_path):
     )
     img = cv2.imread(str(path))
     assert img is not None and img.shape[1] > 2 * img.shape[0]  # three panels side by side
+
+
+def test_methods_and_recipes_of_a_config():
+    config, _ = parse(["--size", "tiny"])
+    assert mexp.methods_of(config) == METHODS  # the default rows
+    config.map.candidates = ("rp_cmu", "rp_paper", "rp_cmu")
+    assert mexp.methods_of(config) == METHODS[:2] + ["rp_cmu"] + METHODS[2:]
+    assert mexp.recipe_of("rp", config) == mexp.RP_RECIPES[config.map.rp_method]
+    assert mexp.recipe_of("kcover", config) is None
+    config.map.rp_method = "rp_magic"
+    with pytest.raises(ValueError, match="unknown RP recipe 'rp_magic'"):
+        mexp.methods_of(config)
+
+
+def test_pool_refuses_seeds_of_different_methods():
+    ok = [True] * 3
+    a = _seed_result([True], [ok], [ok], ["2010-09-01"])
+    b = _seed_result([True], [ok], [ok], ["2010-09-01"])
+    del b["outcomes"]["random"]
+    with pytest.raises(ValueError, match="different methods"):
+        mexp.pool([a, b], ["0.5"])
