@@ -45,6 +45,7 @@ import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import jax
 import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
@@ -255,8 +256,6 @@ def _cmu_root(config, seed: int) -> Path:
 
 def _fingerprint(config, params) -> str:
     """What makes one seed's outcomes: the config (less the seed list) and the RP's weights."""
-    import jax
-
     settings = config.to_dict()
     settings["map"].pop("seeds", None)
     h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
@@ -586,6 +585,19 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
                     "only_kcover": c,
                     "p": mcnemar_exact(b, c),
                 }
+    # Does time matter in this world? The date oracle paired with the time-agnostic one.
+    oracle_gap = {}
+    if set(ORACLES) <= set(methods):
+        for ratio in ratios:
+            a, b = stacked("oracle_date", ratio), stacked("oracle_agnostic", ratio)
+            oracle_gap[ratio] = {}
+            for j, th in enumerate(THRESHOLD_KEYS):
+                only_date, only_agnostic = paired_counts(a[:, j], b[:, j])
+                oracle_gap[ratio][th] = {
+                    "only_date": only_date,
+                    "only_agnostic": only_agnostic,
+                    "p": mcnemar_exact(only_date, only_agnostic),
+                }
     full = np.concatenate(
         [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
     )[posed]
@@ -628,6 +640,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         "accuracy": accuracy,
         "interval": interval,
         "paired": paired,
+        "oracle_date_vs_agnostic": oracle_gap,
         "full_map_accuracy": full_acc,
         "inlier_auc": auc,
         "inlier_auc_per_date": auc_per_date,

@@ -21,13 +21,20 @@ def _p(p: float) -> str:
     return f"{p:.3g}" if p >= 1e-3 else f"{p:.1e}"
 
 
+def _head(first: str, columns) -> list[str]:
+    """A markdown table's header and rule."""
+    columns = list(columns)
+    return [f"| {first} | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+
+
+def _pct(ratios) -> list[str]:
+    return [f"{100 * float(r):.0f} %" for r in ratios]
+
+
 def accuracy_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) -> list[str]:
     """Accuracy [95 % interval] per method and ratio; ``*`` marks p < 0.05 vs K-cover."""
     ratios = metrics["ratios"]
-    lines = [
-        "| method | " + " | ".join(f"{100 * float(r):.0f} % pruned" for r in ratios) + " |",
-        "|---|" + "---|" * len(ratios),
-    ]
+    lines = _head("method", [f"{c} pruned" for c in _pct(ratios)])
     for method in metrics["methods"]:
         cells = []
         for r in ratios:
@@ -44,10 +51,7 @@ def accuracy_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) 
 def paired_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) -> list[str]:
     """Queries only the method / only K-cover localizes, and the exact McNemar p-value."""
     ratios = metrics["ratios"]
-    lines = [
-        "| method vs K-cover | " + " | ".join(f"{100 * float(r):.0f} %" for r in ratios) + " |",
-        "|---|" + "---|" * len(ratios),
-    ]
+    lines = _head("method vs K-cover", _pct(ratios))
     for method in metrics["methods"]:
         if method == metrics["reference"]:
             continue
@@ -87,7 +91,11 @@ def findings(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
         for r in ratios:
             a = metrics["accuracy"]["oracle_date"][r][th]
             b = metrics["accuracy"]["oracle_agnostic"][r][th]
-            cells.append(f"{100 * float(r):.0f} %: {a:.1f} vs {b:.1f}")
+            g = metrics["oracle_date_vs_agnostic"][r][th]
+            cells.append(
+                f"{100 * float(r):.0f} %: {a:.1f} vs {b:.1f} "
+                f"(+{g['only_date']} / -{g['only_agnostic']}, p {_p(g['p'])})"
+            )
         out.append(
             f"- Does time matter in this world? oracle_date vs oracle_agnostic at {th}: "
             + "; ".join(cells)
@@ -160,8 +168,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
     lines += [
         "## Kept points per database image (min / median over images, pooled over seeds)",
         "",
-        "| method | " + " | ".join(f"{100 * float(r):.0f} %" for r in metrics["ratios"]) + " |",
-        "|---|" + "---|" * len(metrics["ratios"]),
+        *_head("method", _pct(metrics["ratios"])),
     ]
     for method in metrics["methods"]:
         lines.append(
@@ -173,10 +180,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         )
     lines += ["", "## Inlier AUC per date", ""]
     dates = metrics["query_dates"]
-    lines += [
-        "| method | " + " | ".join(dates) + " |",
-        "|---|" + "---|" * len(dates),
-    ]
+    lines += _head("method", dates)
     for method in metrics["methods"]:
         per = metrics["inlier_auc_per_date"].get(method, {})
         lines.append(f"| {labels[method]} | " + " | ".join(_fmt(per.get(d), 2) for d in dates) + " |")

@@ -15,7 +15,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
-from rp_jax import experiment
+from rp_jax import experiment, predict, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = ["cmu_config", "rp_config", "train_cmu_predictor", "train_predictor"]
@@ -31,15 +31,8 @@ def rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
     return cfg
 
 
-def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress: bool = True):
-    """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes); (predictor, counts)."""
-    from rp_jax import predict, train
-
-    cfg = rp_config(config)
-    data = experiment.build_dataset(cfg, rp_dir)
-    if "train" not in data or len(data["train"]["label"]) == 0:
-        raise ValueError(f"{cfg.dataset}/{cfg.data_config}: no training records")
-    cols = data["train"]
+def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
+    """Hold out validation viewpoints of ``cols``, train in ``rp_dir`` (resumes), load it."""
     val_mask = experiment.split_validation(cols["viewpoint"], cfg.validation_fraction, cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
     val_cols = {k: v[val_mask] for k, v in cols.items()}
@@ -57,7 +50,22 @@ def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress
         "train_viewpoints": len(set(train_cols["viewpoint"].tolist())),
         "validation_viewpoints": len(set(val_cols["viewpoint"].tolist())),
     }
-    return predict.load(rp_dir, batch_size=config.eval_batch_size), counts
+    return predict.load(rp_dir, batch_size=batch_size), counts
+
+
+def _train_columns(cfg, rp_dir: Path) -> dict:
+    data = experiment.build_dataset(cfg, rp_dir)
+    cols = data.get("train")
+    if cols is None or len(cols["label"]) == 0:
+        raise ValueError(f"{cfg.dataset}/{cfg.data_config}: no training records")
+    return cols
+
+
+def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress: bool = True):
+    """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes); (predictor, counts)."""
+    cfg = rp_config(config)
+    cols = _train_columns(cfg, rp_dir)
+    return _fit(cfg, rp_dir, cols, batch_size=config.eval_batch_size, progress=progress)
 
 
 def cmu_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -90,35 +98,18 @@ def train_cmu_predictor(
     A slice the map summarization is evaluated on is excluded, so choosing settings on a
     held-out training slice never trains on that slice.
     """
-    from rp_jax import predict, train
-
     cfg = cmu_config(config)
-    data = experiment.build_dataset(cfg, rp_dir)
-    cols = data.get("train")
-    if cols is None or len(cols["label"]) == 0:
-        raise ValueError(f"{cfg.dataset}/{cfg.data_config}: no training records")
+    cols = _train_columns(cfg, rp_dir)
     slice_of = np.array(
         [(v.decode() if isinstance(v, bytes) else str(v)).split("/")[0] for v in cols["viewpoint"]]
     )
     keep = ~np.isin(slice_of, [f"slice{s}" for s in exclude_slices])
     if not keep.any():
         raise ValueError(f"no CMU training records outside slices {list(exclude_slices)}")
-    cols = {k: v[keep] for k, v in cols.items()}
-    val_mask = experiment.split_validation(cols["viewpoint"], cfg.validation_fraction, cfg.seed)
-    train_cols = {k: v[~val_mask] for k, v in cols.items()}
-    val_cols = {k: v[val_mask] for k, v in cols.items()}
-    train.train_and_evaluate(
-        cfg,
-        rp_dir,
-        experiment.model_source(train_cols),
-        experiment.model_source(val_cols) if val_mask.any() else None,
-        schedule=schedule_lib.preset(cfg.schedule),
-        progress=progress,
+    predictor, counts = _fit(
+        cfg, rp_dir, {k: v[keep] for k, v in cols.items()},
+        batch_size=config.eval_batch_size, progress=progress,
     )
-    counts = {
-        "train_points": int((~val_mask).sum()),
-        "validation_points": int(val_mask.sum()),
-        "train_slices": sorted(set(slice_of[keep].tolist())),
-        "excluded_slices": [f"slice{s}" for s in exclude_slices],
-    }
-    return predict.load(rp_dir, batch_size=config.eval_batch_size), counts
+    counts["train_slices"] = sorted(set(slice_of[keep].tolist()))
+    counts["excluded_slices"] = [f"slice{s}" for s in exclude_slices]
+    return predictor, counts

@@ -69,6 +69,8 @@ def test_metrics_file_shape_and_values(tiny_run):
                 if method == "kcover":
                     assert pr == {"only_method": 0, "only_kcover": 0, "p": 1.0}
     assert set(metrics["inlier_auc"]) == set(METHODS)
+    gap = metrics["oracle_date_vs_agnostic"]
+    assert list(gap) == RATIOS and all(list(gap[r]) == THRESHOLDS for r in RATIOS)
     # The date oracle knows which points are re-detected: it must rank inliers well.
     assert metrics["inlier_auc"]["oracle_date"] > 0.7
     assert metrics["full_map_accuracy"]["5m_10deg"] > 50, "the unpruned map localizes too little"
@@ -229,3 +231,12 @@ def test_pool_refuses_seeds_of_different_methods():
     del b["outcomes"]["random"]
     with pytest.raises(ValueError, match="different methods"):
         mexp.pool([a, b], ["0.5"])
+
+
+def test_pool_pairs_the_two_oracles():
+    ok, no = [True] * 3, [False] * 3
+    a = _seed_result([True] * 4, [ok] * 4, [ok] * 4, ["2010-09-01"] * 4)
+    a["outcomes"]["oracle_date"] = {"0.5": [ok, ok, ok, no]}
+    a["outcomes"]["oracle_agnostic"] = {"0.5": [no, no, ok, ok]}
+    gap = mexp.pool([a], ["0.5"], resamples=50)["oracle_date_vs_agnostic"]["0.5"]["5m_10deg"]
+    assert gap == {"only_date": 2, "only_agnostic": 1, "p": 1.0}
