@@ -3,23 +3,34 @@ network as ours (Sec. III-B), the statistics, and the report's shape at tiny siz
 
 No timing thresholds: speeds on a shared machine are whatever they are; only the structure
 of the report and the equality of the two implementations are checked.
+
+PyTorch is the optional ``bench`` extra (not installed in CI): the tests that run the
+PyTorch peer are skipped without it, the rest of the harness is tested everywhere.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
-
 from experiments.benchmark import stages
-from experiments.benchmark import torch_reference as tr
 from experiments.benchmark.__main__ import main
 from experiments.benchmark.run import run_benchmark
 
+HAVE_TORCH = importlib.util.find_spec("torch") is not None
+if HAVE_TORCH:
+    import torch
 
+    from experiments.benchmark import torch_reference as tr
+
+needs_torch = pytest.mark.skipif(not HAVE_TORCH,
+                                 reason="needs torch (the bench extra: pip install -e .[bench])")
+
+
+@needs_torch
 def test_torch_reference_equals_ours():
     check = stages.check_torch_equals_jax(stages.SIZES["tiny"], num_points=8, seed=1)
     assert check["output_max_abs_diff"] <= 1e-5
@@ -30,6 +41,7 @@ def test_torch_reference_equals_ours():
     assert check["grad_max_rel_diff"] <= 1e-4
 
 
+@needs_torch
 def test_layout_mistakes_are_detected():
     """A wrong kernel layout or PyTorch's symmetric padding changes the features: the equality
     check above can fail."""
@@ -60,6 +72,7 @@ def test_layout_mistakes_are_detected():
         assert (sym - same).abs().max() > 1e-3
 
 
+@needs_torch
 def test_load_flax_params_rejects_other_sizes():
     import jax
 
@@ -107,8 +120,8 @@ def test_cli_rejects_unknown_stage(tmp_path):
 
 @pytest.fixture(scope="module")
 def tiny_report(tmp_path_factory):
-    """One tiny run of every stage; the model stages with one JAX variant and the peer, to
-    keep the test short (the full run measures all variants)."""
+    """One tiny run of every stage; the model stages with one JAX variant and the PyTorch
+    peer, to keep the test short (the full run measures all variants)."""
     out = tmp_path_factory.mktemp("bench")
     variants = {"train": ["jax_1dev", "torch_eager"], "predict": ["jax_2dev_ynn", "torch_eager"]}
     js, md = run_benchmark(
@@ -123,6 +136,7 @@ def tiny_report(tmp_path_factory):
 
 
 @pytest.mark.slow
+@needs_torch
 def test_report_shape(tiny_report):
     results, md, _ = tiny_report
     assert list(results) == ["train", "predict", "match", "groundtruth"]
@@ -164,6 +178,7 @@ def test_report_shape(tiny_report):
 
 
 @pytest.mark.slow
+@needs_torch
 def test_rerun_of_one_stage_keeps_the_others(tiny_report):
     results, _, out = tiny_report
     run_benchmark(["match"], out, size="tiny", repeats=1, progress=False)
