@@ -3,8 +3,7 @@
 Each preset is generated twice: with a small exact ray-caster defined here (a street of two
 textured facades and a textured ground, the real OPENCV distortion applied), so the
 layouts, poses and COLMAP model are checked against known geometry whatever the state of
-the real renderer; and, when ``rp_jax.sources.synthetic.render`` is importable, with the
-real renderer (``test_real_renderer_*``).
+the real renderer; and with the real renderer (``test_real_renderer_*``).
 """
 
 from __future__ import annotations
@@ -434,22 +433,9 @@ def test_bad_arguments(tmp_path):
 
 
 # --------------------------------------------------------------------------- the real renderer
+# presets.generate imports rp_jax.sources.synthetic.render: if it cannot, these tests fail.
 
 
-def _real_renderer_available() -> bool:
-    try:
-        from rp_jax.sources.synthetic import render
-    except ImportError:
-        return False
-    return hasattr(render, "render") and hasattr(render, "View")
-
-
-real = pytest.mark.skipif(
-    not _real_renderer_available(), reason="rp_jax.sources.synthetic.render not written yet"
-)
-
-
-@real
 @pytest.mark.slow
 def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, monkeypatch):
     monkeypatch.setattr(presets, "MIN_FRAMES_PER_WORKER", 1)  # really use two processes
@@ -472,7 +458,6 @@ def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, monkeypatch):
     assert {categories.BUILDING, categories.GROUND} <= cats
 
 
-@real
 @pytest.mark.slow
 def test_real_renderer_cmu_model_and_query_poses(tmp_path):
     out = presets.generate(
@@ -507,12 +492,10 @@ def test_real_renderer_cmu_model_and_query_poses(tmp_path):
 
 
 def _reader(name: str):
+    """The reader module of a dataset (an import error is a failure, not a skip)."""
     import importlib
 
-    try:
-        return importlib.import_module(f"rp_jax.sources.{name}")
-    except ImportError:
-        pytest.skip(f"rp_jax.sources.{name} not written yet")
+    return importlib.import_module(f"rp_jax.sources.{name}")
 
 
 def test_readers_read_the_synthetic_layouts(fake_world, tmp_path):
