@@ -40,8 +40,14 @@ def test_experiment_tiny(tmp_path, name, get_config, figures):
     metrics = json.loads((workdir / "metrics.json").read_text())
     assert KEYS <= set(metrics)
     assert set(metrics["baselines"]) == BASELINES
+    T = len(metrics["schedule"]["labels"])
     for m in [metrics, *metrics["baselines"].values()]:
-        assert 0.0 <= m["test_mae"] <= 1.0 and m["test_mse"] >= 0.0
+        mae, mse_slot, mse = m["test_mae"], m["test_mse_per_slot"], m["test_mse"]
+        # Per valid entry the error e lies in [-1, 1], so mean e^2 <= mean |e| and, by Jensen,
+        # (mean |e|)^2 <= mean e^2; a no-error score would mean the labels leaked.
+        assert 0.0 < mae and mae**2 <= mse_slot * (1 + 1e-9) and mse_slot <= mae * (1 + 1e-9), m
+        # The paper's loss sums over a point's valid slots (at least its own, at most T).
+        assert mse_slot * (1 - 1e-9) <= mse <= T * mse_slot * (1 + 1e-9), m
     assert metrics["counts"]["train"] > 0 and metrics["counts"]["test"] > 0
     assert len(metrics["curves"]["gt"]) == len(metrics["schedule"]["labels"])
     if name == "cmu_seasons":

@@ -1,6 +1,5 @@
 """The vectorised matcher equals cv2.BFMatcher.knnMatch(k=2) + ratio test (Sec. III-D)."""
 
-import cv2
 import numpy as np
 import pytest
 
@@ -78,7 +77,10 @@ def test_ratio_test_rejects_ambiguous_neighbours():
 def test_cv2_reference_helper_matches_bruteforce_numpy():
     rng = np.random.default_rng(5)
     a, b = rng.random((20, 8), dtype=np.float32), rng.random((30, 8), dtype=np.float32)
-    nn, _, _ = match_pair_reference(a, b)
-    d = ((a[:, None] - b[None]) ** 2).sum(-1)
+    nn, d1, ok = match_pair_reference(a, b, ratio=0.8)
+    d = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1))
     np.testing.assert_array_equal(nn, d.argmin(1))
-    assert cv2.NORM_L2 is not None
+    nearest, second = np.sort(d, axis=1)[:, :2].T
+    np.testing.assert_allclose(d1, nearest, rtol=1e-5)  # the Euclidean distance, not its square
+    np.testing.assert_array_equal(ok, nearest < 0.8 * second)
+    assert 0 < ok.sum() < len(ok)  # the ratio test passes some points and rejects others
