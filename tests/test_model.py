@@ -43,8 +43,17 @@ def test_predictor_shapes_range_and_parameter_count():
     sizes = {k: params[k]["kernel"].shape[1] for k in ("fc1", "fc2", "fc3", "fc4", "fc5", "fc6")}
     assert sizes == {"fc1": 64, "fc2": 32, "fc3": 64, "fc4": 32, "fc5": 64, "fc6": 21}
     count = sum(p.size for p in jax.tree.leaves(params))
-    print(f"RepeatabilityPredictor(T=21) parameters: {count:,}")
-    assert 100_000 < count < 2_000_000
+    # By hand, default sizes, T = 21, d = 2 (weights + biases):
+    # patch encoder (ours; the paper gives none), on the 16x16x48 space-to-depth input:
+    #   conv1 3x3x48->64   27,648 + 64  =  27,712
+    #   conv2 3x3x64->64   36,864 + 64  =  36,928  (stride 2: 8x8)
+    #   conv3 3x3x64->128  73,728 + 128 =  73,856  (stride 2: 4x4)
+    #   proj  4*4*128=2048->128  262,144 + 128 = 262,272        encoder 400,768
+    # the paper's layers, on [128 patch features, 2 xy, 2 time] = 132 inputs:
+    #   fc1 132->64 8,512; fc2 64->32 2,080; fc3 32->64 2,112; fc4 64->32 2,080;
+    #   fc5 32->64 2,112; GeM p (rho) 1; fc6 64->21 1,365                 head 18,262
+    # total 400,768 + 18,262 = 419,030
+    assert count == 419_030
 
 
 def test_bfloat16_encoder_keeps_float32_output():
