@@ -33,20 +33,22 @@ functions' docstrings (and scikit-image's data gallery):
 
 Physical scale (metres per photo pixel)
 ---------------------------------------
-- Brick, measured on the rectified photograph: the stretcher module (brick + head joint)
-  repeats every ``BRICK_MODULE_PX`` = 145.3 px (peak of the row-wise autocorrelation,
-  averaged over all rows; the head joints detected course by course are 145 px apart,
-  with some half bats at 73 px) and the courses every ``BRICK_COURSE_PX`` = 54.2 px
-  (bed-joint spacing, 12 courses; autocorrelation of the row means: 54.0, 108.5, 163.5,
-  217.8 px at lags 1..4). The joints are 6-7 px wide (half maximum). The bricks are 2.68
-  modules per course, not the 3.0 of a 215 x 65 mm brick with 10 mm joints (nor of a US
-  modular brick, 194 x 57 mm, 203 x 68 mm with joints), so length and height cannot both
-  be a standard format; the length is the common part of brick formats (215 mm in the UK
-  and EU, 210 mm Dutch and Belgian, 194-203 mm in the US), so the stretcher is taken as
-  215 mm + a 10 mm joint: 0.225 m / 145.3 px = 1.55 mm/px. That gives 10 mm joints
-  (6.5 px), matching the usual joint, as an independent check, and 84 mm courses
-  (a 74 mm brick; German NF brickwork has 83.3 mm courses; a 75 mm course would scale
-  everything by 0.89). The rectified photo covers 1.02 x 1.02 m, 12 courses of 4 bricks.
+- Brick, measured on the rectified photograph (660 x 656 px): the stretcher module
+  (brick + head joint) repeats every ``BRICK_MODULE_PX`` = 145.3 px (peak of the
+  row-wise autocorrelation averaged over all rows; the head joints detected course by
+  course are 143-148 px apart, with some half bats at 72-75 px) and the courses every
+  ``BRICK_COURSE_PX`` = 54.1 px (mean spacing of the 11 bed joints found, 50.7-57.3 px;
+  the autocorrelation of the row means peaks at 54.0, 108.5, 163.5, 217.8 px). Joints are
+  6-7 px wide (half maximum). The bond is irregular, about a quarter brick between
+  courses. The bricks are 2.68 modules per course, not the 3.0 of a 215 x 65 mm brick
+  with 10 mm joints (nor of a US modular brick, 194 x 57 mm, 203 x 68 mm with joints), so
+  length and height cannot both be a standard format; the length is the common part of
+  brick formats (215 mm in the UK and EU, 210 mm Dutch and Belgian, 194-203 mm in the US),
+  so the stretcher is taken as 215 mm + a 10 mm joint: 0.225 m / 145.3 px = 1.55 mm/px.
+  That gives 10 mm joints (6.5 px), the usual joint, as an independent check, and 84 mm
+  courses (a 74 mm brick; German NF brickwork has 83.3 mm courses; a 75 mm course would
+  scale everything by 0.89). The rectified photo covers 1.02 x 1.02 m: 12 courses of
+  about 4.5 bricks.
 - Grass: blades 2-4 px wide (autocorrelation half-maximum at 2 px radius), and lawn
   grasses (perennial ryegrass, Kentucky bluegrass, fescues) have leaf blades about 2-5 mm
   wide; at 3 mm per 3 px: 1.0 mm/px, a 0.51 m footprint. The clover and weed rosettes
@@ -62,13 +64,16 @@ every building and ground tile shows a different piece of the photograph.
 Tiling
 ------
 A photo is about 1 m across; a facade is 10-20 m. Bricks are laid out course by course:
-each bed joint of the photo is located (``brick_layout``), output courses are photo
-courses in runs of 2-5 consecutive ones (the photo's own bond) starting at a random course
-and a random horizontal offset, joined at bed-joint centres (mortar meets mortar), and
-each course repeats horizontally between two of its own head-joint centres (mortar meets
-mortar again): no seam crosses a brick. Grass and gravel (isotropic) are quilted from
-random blocks of the photo (random offset, one of the 8 rotations/flips), overlapping by
-half and blended with tent weights normalised to keep the photo's variance.
+each bed joint of the photo is located (``brick_layout``); output courses are photo
+courses in runs of 2-5 consecutive ones from a random course, joined at bed-joint centres
+(mortar meets mortar); each course repeats horizontally between its first and last
+head-joint centres (mortar meets mortar again), so no seam crosses a brick, and is
+shifted by the best of a few random offsets so that its head joints fall between those
+of the course below, as a bricklayer breaks the joints. A wall may be mirrored
+left-right, never upside down (the joints are shaded by light from above). Grass and
+gravel (isotropic) are quilted from random blocks of the photo (centred in its middle
+half, in one of the 8 rotations/flips), overlapping by half and blended with tent
+weights normalised to keep the photo's variance.
 
 The photos are grayscale: they give the luminance structure; colour comes from the
 procedural palette of the surface (the building's brick colour, the season's grass).
@@ -117,7 +122,7 @@ PHOTOS = ("brick", "grass", "gravel")
 # Measured on photo("brick") (see the module docstring; tests/sources/synthetic/
 # test_photo_textures.py measures them again).
 BRICK_MODULE_PX = 145.3  # stretcher + head joint, rectified px
-BRICK_COURSE_PX = 54.2  # brick + bed joint, rectified px
+BRICK_COURSE_PX = 54.1  # brick + bed joint, rectified px
 BRICK_MODULE_M = 0.225  # a 215 mm stretcher + a 10 mm head joint
 M_PER_PX = {
     "brick": BRICK_MODULE_M / BRICK_MODULE_PX,  # 1.55 mm/px
@@ -292,13 +297,14 @@ def _sample(src: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 _BOND_CANDIDATES = 6  # random horizontal shifts tried per course
 
 
-def _head_joints_x(heads: np.ndarray, offsets: np.ndarray, span: float) -> np.ndarray:
+def _head_joints_x(heads: np.ndarray, offsets: np.ndarray, span: float, flip: float = 1.0) -> np.ndarray:
     """Output positions (photo px from the wall's left edge) of a course's head joints.
 
-    One sorted row per horizontal shift in ``offsets``: (len(offsets), n).
+    The course is read at ``heads[0] + (flip * x + offset) mod period``. One sorted row
+    per horizontal shift in ``offsets``: (len(offsets), n).
     """
     period = heads[-1] - heads[0]
-    base = np.mod(heads[None, :-1] - heads[0] - offsets[:, None], period)
+    base = np.mod(flip * (heads[None, :-1] - heads[0] - offsets[:, None]), period)
     n = int(np.ceil(span / period)) + 1
     return np.sort((base[:, None, :] + period * np.arange(n)[None, :, None]).reshape(len(offsets), -1), axis=1)
 
@@ -337,6 +343,8 @@ def brick_luminance(seed: int, h: int, w: int, texel: float | tuple[float, float
     first = np.array([hd[0] for hd in heads])
     period = np.array([hd[-1] - hd[0] for hd in heads])
     span = w * kx
+    flip = 1.0 if rng.random() < 0.5 else -1.0  # mirrored left-right (never upside down:
+    # the photo's joints are shaded by light from above)
     t = (np.arange(h) + 0.5) * ky + rng.uniform(0.0, heights.mean())
     starts, course, offset = [0.0], [], []
     below = None
@@ -345,7 +353,7 @@ def brick_luminance(seed: int, h: int, w: int, texel: float | tuple[float, float
         c0 = int(rng.integers(0, n_courses - run + 1))
         for c in range(c0, c0 + run):
             cand = rng.uniform(0.0, period[c], _BOND_CANDIDATES)
-            joints = _head_joints_x(heads[c], cand, span)
+            joints = _head_joints_x(heads[c], cand, span, flip)
             best = 0 if below is None else int(np.argmax(_joint_gap(below, joints)))
             below = joints[best]
             course.append(c)
@@ -357,7 +365,7 @@ def brick_luminance(seed: int, h: int, w: int, texel: float | tuple[float, float
     c_row = course_a[idx]
     v = bed[c_row] + (t - starts_a[idx])  # photo row of each output row
     x = (np.arange(w) + 0.5) * kx
-    u = first[c_row][:, None] + np.mod(x[None, :] + offset_a[idx][:, None], period[c_row][:, None])
+    u = first[c_row][:, None] + np.mod(flip * x[None, :] + offset_a[idx][:, None], period[c_row][:, None])
     # Photo px -> samples of the prefiltered photo (pixel centres at (i + 0.5) / f - 0.5).
     out = _sample(src, (u + 0.5) * f - 0.5, np.broadcast_to(((v + 0.5) * f - 0.5)[:, None], u.shape))
     return out[..., 0], np.clip(out[..., 1], 0.0, 1.0)
