@@ -6,7 +6,10 @@ cars and road markings. This module paints those details procedurally so that th
 pixels carry the same kind of structure: every brick, window and sign is drawn with its own
 random variation (no two windows alike: curtains, blinds, objects), and every texture is
 pre-blurred (band-limited) before it is sampled, so that renders at sub-pixel offsets do
-not alias.
+not alias. Where scikit-image is installed, brick walls, lawns, lawn paths and flat roofs
+take their material from real photographs of brick, grass and gravel
+(``photo_textures``), in the colours drawn here and around the same windows, doors, signs
+and snow; the procedural materials are the fallback.
 
 Every function returns an RGBA ``uint8`` array ``(H, W, 4)``: RGB albedo in sRGB and a
 fourth *aux* channel whose meaning depends on the material (see ``scene.Material``):
@@ -21,6 +24,8 @@ import string
 
 import cv2
 import numpy as np
+
+from rp_jax.sources.synthetic import photo_textures as pt
 
 __all__ = [
     "TEXEL_M",
@@ -110,23 +115,41 @@ _SIDING_COLOURS = np.array(
 )
 
 
-def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float) -> np.ndarray:
-    """Wall albedo (H, W, 3) float32 for a style: brick, plaster, siding or concrete."""
-    ppm = 1.0 / texel
+_MORTAR = np.float32([0.72, 0.70, 0.66])
+
+
+def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float | tuple[float, float],
+          photo_seed: int | None = None) -> np.ndarray:
+    """Wall albedo (H, W, 3) float32 for a style: brick, plaster, siding or concrete.
+
+    ``texel`` is metres per texel, or (along rows, along columns). Brick is the brick
+    photograph (``photo_textures.brick_tile``, cut by ``photo_seed``) in the building's
+    brick colour when the photos are available and ``photo_seed`` is given, else drawn
+    brick by brick. Either way ``rng`` is drawn from exactly as before, so everything a
+    caller draws after the wall (windows, doors, signs, snow) stays where it was.
+    """
+    texel_yx = (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
+    ppm = 1.0 / texel_yx[1]
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     grain = value_noise((h, w), rng, cell=6, octaves=3)[..., None]
     stain = value_noise((h, w), rng, cell=ppm * 3, octaves=3)[..., None]
     if style == "brick":
         base = _BRICK_COLOURS[rng.integers(len(_BRICK_COLOURS))]
-        course, brick_len = 0.075 * ppm, 0.215 * ppm
-        row = np.floor(yy / course)
-        xs = xx + (row % 2) * brick_len * 0.5
-        col = np.floor(xs / brick_len)
-        hsh = np.sin(row * 12.9898 + col * 78.233 + rng.random() * 100) * 43758.5453
-        hsh = (hsh - np.floor(hsh))[..., None].astype(np.float32)
-        rgb = base * (0.78 + 0.4 * hsh) * (0.92 + 0.16 * grain)
-        mortar = ((yy % course) < 0.012 * ppm + 0.6) | ((xs % brick_len) < 0.012 * ppm + 0.6)
-        rgb = np.where(mortar[..., None], np.float32([0.72, 0.70, 0.66]) * (0.9 + 0.2 * grain), rgb)
+        phase = rng.random() * 100
+        if photo_seed is not None and pt.available():
+            # The photograph's bricks and mortar (its own tone per brick, its own joints)
+            # replace the drawn ones, in this building's brick colour.
+            rgb = pt.brick_tile(photo_seed, h, w, texel_yx, base, _MORTAR)
+        else:
+            course, brick_len = 0.075 * ppm, 0.215 * ppm
+            row = np.floor(yy / course)
+            xs = xx + (row % 2) * brick_len * 0.5
+            col = np.floor(xs / brick_len)
+            hsh = np.sin(row * 12.9898 + col * 78.233 + phase) * 43758.5453
+            hsh = (hsh - np.floor(hsh))[..., None].astype(np.float32)
+            rgb = base * (0.78 + 0.4 * hsh) * (0.92 + 0.16 * grain)
+            mortar = ((yy % course) < 0.012 * ppm + 0.6) | ((xs % brick_len) < 0.012 * ppm + 0.6)
+            rgb = np.where(mortar[..., None], _MORTAR * (0.9 + 0.2 * grain), rgb)
     elif style == "siding":
         base = _SIDING_COLOURS[rng.integers(len(_SIDING_COLOURS))]
         board = 0.18 * ppm
@@ -263,7 +286,7 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
     ledges: list[tuple[int, int, int]] = []  # (x0, x1, y): horizontal ledges, top at row y
     W, H = pad16(width_m / texel), pad16(height_m / texel)
     ppm = W / width_m
-    rgb = _wall(style, H, W, rng, 1.0 / ppm)
+    rgb = _wall(style, H, W, rng, (height_m / H, 1.0 / ppm), photo_seed=seed)
     aux = np.zeros((H, W), np.uint8)
     frame_col = (np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else _rand_colour(rng, 0.3) * 0.7)
     n_floors = max(1, int(height_m / floor_h))
@@ -390,7 +413,7 @@ def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, te
     del snow
     rng = np.random.default_rng(seed)
     W, H = pad16(width_m / texel), pad16(height_m / texel)
-    rgb = _wall(style, H, W, rng, width_m / W)
+    rgb = _wall(style, H, W, rng, (height_m / H, width_m / W), photo_seed=seed)
     aux = np.zeros((H, W), np.uint8)
     ppm = W / width_m
     for k in range(int(rng.integers(0, 4))):
@@ -402,11 +425,18 @@ def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, te
 
 def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel: float = 0.08,
                  snow_pattern: int = 0) -> np.ndarray:
-    """Flat roof (tar/gravel); aux = snow susceptibility (high everywhere)."""
+    """Flat roof (tar/gravel); aux = snow susceptibility (high everywhere).
+
+    With the photos, the roof is gravel-ballasted (the gravel photograph: 20 mm stones,
+    as the 16-32 mm ballast of flat roofs), under the same metre-scale weathering.
+    """
     rng = np.random.default_rng(seed)
     W, H = pad16(width_m / texel), pad16(depth_m / texel)
     g = value_noise((H, W), rng, cell=8, octaves=3)[..., None]
-    rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
+    if pt.available():
+        rgb = pt.gravel_tile(seed, H, W, (depth_m / H, width_m / W), [0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
+    else:
+        rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
     aux = (200 + 55 * value_noise((H, W), rng, cell=10, octaves=2)).astype(np.uint8)
     rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
     return _finish(rgb, aux, blur=0.6)
@@ -454,10 +484,16 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
     rng = np.random.default_rng(seed)
     W, H = pad16(length_m / texel), pad16(width_m / texel)
     ppm = W / length_m
+    texel_yx = (width_m / H, length_m / W)
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
     fine = value_noise((H, W), rng, cell=3, octaves=2)[..., None]
     blot = value_noise((H, W), rng, cell=2.5 * ppm, octaves=3)[..., None]
     if kind == "road":
+        # Asphalt stays procedural: no photograph of asphalt ships here, and the gravel
+        # photo is no stand-in. Its loose 20 mm stones with black gaps between them would,
+        # area-averaged over 25 mm texels, give grainy high-contrast mottling, where an
+        # asphalt wearing course is 6-14 mm chippings bound in bitumen and rolled flat:
+        # darker and of lower contrast, which the fine noise and sparse specks draw.
         base = np.float32([0.30, 0.30, 0.31]) * rng.uniform(0.85, 1.15)
         speck = (rng.random((H, W), dtype=np.float32) ** 6)[..., None]
         rgb = base * (0.75 + 0.35 * fine + 0.4 * speck) * (0.85 + 0.3 * blot)
@@ -524,11 +560,22 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         greens = {0: [0.42, 0.38, 0.26], 1: [0.26, 0.42, 0.16], 2: [0.34, 0.42, 0.18], 3: [0.45, 0.40, 0.20]}
         base = np.float32(greens[int(season)])
         blade = rng.random((H, W), dtype=np.float32)[..., None]
-        rgb = base * (0.7 + 0.3 * fine + 0.25 * blade) * (0.8 + 0.4 * blot)
+        photos = pt.available()
+        if photos:
+            # The grass photograph gives the lawn's structure below ~0.5 m (blades, clumps,
+            # weeds: the procedural fine noise and blades); the 2.5 m blotches stay.
+            # (0.975: the mean of the procedural modulation below, so the lawn's mean colour stays.)
+            rgb = pt.grass_tile(seed, H, W, texel_yx, base * 0.975) * (0.8 + 0.4 * blot)
+        else:
+            rgb = base * (0.7 + 0.3 * fine + 0.25 * blade) * (0.8 + 0.4 * blot)
         aux = (205 + 50 * blot[..., 0]).astype(np.uint8)
-        if rng.random() < 0.5:  # a path or driveway across the lawn
+        if rng.random() < 0.5:  # a path or driveway across the lawn (gravel with the photos)
             px, pw = rng.integers(0, max(1, W - int(3 * ppm))), int(rng.uniform(1.0, 3.0) * ppm)
-            rgb[:, px:px + pw] = np.float32([0.58, 0.56, 0.52]) * (0.85 + 0.25 * fine[:, px:px + pw])
+            if photos:
+                rgb[:, px:px + pw] = pt.gravel_tile(seed, H, pw, texel_yx,
+                                                    np.float32([0.58, 0.56, 0.52]) * 0.975)
+            else:
+                rgb[:, px:px + pw] = np.float32([0.58, 0.56, 0.52]) * (0.85 + 0.25 * fine[:, px:px + pw])
             aux[:, px:px + pw] = 90
         if season == 3:
             leaves = (rng.random((H, W)) < 0.01)
