@@ -27,7 +27,10 @@ class Builder(builder.RepeatabilityBuilder):
         "Synthetic world version 3: the reference traversal is recorded as the real one "
         "is described (Apr 4, 2011, sunny, no foliage; it fills the paper's Apr 21 slot) and "
         "every traversal starts between 9:00 and 16:00 local time (9:30-14:30 before), so "
-        "the synthetic records change; query poses are also written to camera-poses/.",
+        "the synthetic records change; query poses are also written to camera-poses/. "
+        "Brick walls, lawns, lawn paths and flat roofs are textured with real photographs of "
+        "brick, grass and gravel (scikit-image's, CC0; windows, signs and snow where they were), "
+        "so the synthetic pixels and records change.",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges; the full synthetic world is 20 "

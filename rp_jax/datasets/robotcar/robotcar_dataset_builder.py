@@ -18,8 +18,12 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "robotcar"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.2.0")
+    VERSION = tfds.core.Version("1.3.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.3.0": "Synthetic world version 3 (an older rendering is rendered again): brick "
+        "walls, lawns, lawn paths and flat roofs are textured with real photographs of brick, "
+        "grass and gravel (scikit-image's, CC0; windows, signs and snow where they were), so "
+        "the synthetic pixels and records change.",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges on snowy days. Ground-truth "

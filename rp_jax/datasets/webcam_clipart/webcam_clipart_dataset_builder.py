@@ -25,7 +25,10 @@ class Builder(builder.RepeatabilityBuilder):
         "camera's zone for the slots and reads the author's MATLAB v7.3 .mat sun angles. "
         "Synthetic world version 3 names its frames in UTC (image_id changes; an older "
         "rendering is rendered again) and writes a v7.3 .mat per frame; times and slots are "
-        "as before.",
+        "as before. "
+        "Brick walls, lawns, lawn paths and flat roofs are textured with real photographs of "
+        "brick, grass and gravel (scikit-image's, CC0; windows, signs and snow where they were), "
+        "so the synthetic pixels and records change.",
         "1.2.0": "Synthetic world version 2: foliage moves in the wind, so tree crowns differ "
         "between frames (an older rendering is rendered again).",
         "1.1.0": "Synthetic world: snow lies on facade ledges on snowy days. Ground-truth "

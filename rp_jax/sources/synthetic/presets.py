@@ -151,7 +151,9 @@ PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
 # 3: webcam frames are named on the UTC clock (the camera's wall clock before), with a v7.3
 #    .mat of sun angles each; CMU query poses also in slice{N}/camera-poses/; the CMU
 #    reference traversal as the real one is described (Apr 4, sunny, no foliage) and
-#    traversals starting between 9:00 and 16:00 (9:30-14:30 before).
+#    traversals starting between 9:00 and 16:00 (9:30-14:30 before); brick walls, lawns,
+#    lawn paths and flat roofs textured with real photographs of brick, grass and gravel
+#    (``photo_textures``, from scikit-image; windows, signs and snow where they were).
 WORLD_VERSION = 3
 SIZES = ("tiny", "small", "full")
 SYNTHETIC_DIR = "_synthetic"  # per-frame side products (keypoints for the COLMAP model)
