@@ -24,8 +24,9 @@ demo: $(INSTALLED)
 test: $(INSTALLED)
 	$(PY) -m pytest -q -p no:cacheprovider
 
+# Rules in pyproject.toml ([tool.ruff.lint]); ruff reads the notebooks' code cells too.
 lint: $(INSTALLED)
-	$(VENV)/bin/ruff check rp_jax experiments tests
+	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
 
 bench: $(INSTALLED)
 	$(PY) -m pip install --quiet -e ".[test,bench]"

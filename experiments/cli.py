@@ -17,8 +17,8 @@ from __future__ import annotations
 import argparse
 import ast
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import ml_collections
 
@@ -57,11 +57,12 @@ def apply_overrides(config: ml_collections.ConfigDict, overrides: list[str]) -> 
                 raise SystemExit(f"--config.{path}: no field {p!r} in the config")
             node = node[p]
         if leaf not in node:
-            raise SystemExit(f"--config.{path}: no such field; fields: {', '.join(sorted(node.keys()))}")
+            fields = ", ".join(sorted(node.keys()))
+            raise SystemExit(f"--config.{path}: no such field; fields: {fields}")
         try:
             node[leaf] = _convert(node[leaf], text)
         except (ValueError, SyntaxError) as e:
-            raise SystemExit(f"--config.{path}={text}: {e}")
+            raise SystemExit(f"--config.{path}={text}: {e}") from e
 
 
 def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
@@ -71,23 +72,27 @@ def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_coll
     return config, workdir
 
 
-def parse_flags(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
-                doc: str, *, cross_validation: bool = False
+def parse_flags(argv: list[str] | None, name: str,
+                get_config: Callable[[str], ml_collections.ConfigDict], doc: str, *,
+                cross_validation: bool = False
                 ) -> tuple[ml_collections.ConfigDict, Path, argparse.Namespace]:
     """Parse the flags into (config, workdir, the parsed flags); ``cross_validation`` adds
     ``--cross-validate`` and ``--folds`` (the Sec. IV-A experiments)."""
     parser = argparse.ArgumentParser(prog=f"python -m experiments.{name}", description=doc,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--workdir", type=Path, default=None, help="run directory (resumes if present)")
+    parser.add_argument("--workdir", type=Path, default=None,
+                        help="run directory (resumes if present)")
     parser.add_argument("--data-dir", type=Path, default=None,
                         help="a real download in its real layout (default: the synthetic world)")
-    parser.add_argument("--size", choices=SIZES, default="full", help="synthetic size (default full)")
+    parser.add_argument("--size", choices=SIZES, default="full",
+                        help="synthetic size (default full)")
     parser.add_argument("--tfds-dir", type=Path, default=None, help="TFDS data directory")
     if cross_validation:
         parser.add_argument("--cross-validate", action="store_true",
                             help="hold out each training viewpoint in turn instead of testing")
         parser.add_argument("--folds", type=int, default=0,
-                            help="with --cross-validate: groups of viewpoints (default 0: one per viewpoint)")
+                            help="with --cross-validate: groups of viewpoints "
+                                 "(default 0: one per viewpoint)")
     parser.set_defaults(cross_validate=False, folds=0)
     args, rest = parser.parse_known_args(argv)
     if args.folds and not args.cross_validate:
@@ -132,9 +137,11 @@ def main(argv, name: str, get_config, doc: str) -> int:
         return 2
     b = metrics["baselines"]
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
-    print(f"test MAE {metrics['test_mae']:.4f} (per-slot mean {b['per_slot_mean']['test_mae']:.4f}, "
+    print(f"test MAE {metrics['test_mae']:.4f} "
+          f"(per-slot mean {b['per_slot_mean']['test_mae']:.4f}, "
           f"slot-conditioned {b['slot_conditioned_mean']['test_mae']:.4f}, "
-          f"descriptor kNN {b['descriptor_knn']['test_mae']:.4f}); curve corr {metrics['curve_corr']:.3f}")
+          f"descriptor kNN {b['descriptor_knn']['test_mae']:.4f}); "
+          f"curve corr {metrics['curve_corr']:.3f}")
     return 0
 
 

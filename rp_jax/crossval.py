@@ -22,12 +22,14 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax import evaluation, experiment, predict, schedule as schedule_lib, time_encoding, train
+from rp_jax import evaluation, experiment, predict, time_encoding, train
+from rp_jax import schedule as schedule_lib
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
 
 METHODS = ("rp", "per_slot_mean", "slot_conditioned_mean", "descriptor_knn")
-LABELS = {"per_slot_mean": "the per-slot mean", "slot_conditioned_mean": "the slot-conditioned mean",
+LABELS = {"per_slot_mean": "the per-slot mean",
+          "slot_conditioned_mean": "the slot-conditioned mean",
           "descriptor_knn": "the descriptor kNN"}
 
 
@@ -45,8 +47,8 @@ def viewpoint_folds(viewpoints: np.ndarray, num_folds: int = 0, seed: int = 0) -
     """
     unique = sorted(set(np.asarray(viewpoints).astype(str).tolist()))
     if len(unique) < 2:
-        raise ValueError(f"cross-validation needs at least 2 training viewpoints, got {len(unique)} "
-                         f"({unique}); use a larger --size")
+        raise ValueError(f"cross-validation needs at least 2 training viewpoints, got "
+                         f"{len(unique)} ({unique}); use a larger --size")
     if num_folds < 0 or num_folds == 1:
         raise ValueError(f"num_folds must be 0 (one per viewpoint) or >= 2, got {num_folds}")
     if num_folds == 0 or num_folds >= len(unique):
@@ -61,25 +63,29 @@ def _fold_name(held: list[str]) -> str:
 
 def _score(pred, label, mask) -> dict:
     e = evaluation.masked_errors(pred, label, mask)
-    return {"mae": e["mae"], "mse": e["mse"], "curve_corr": evaluation.curve_corr(pred, label, mask),
+    return {"mae": e["mae"], "mse": e["mse"],
+            "curve_corr": evaluation.curve_corr(pred, label, mask),
             "mean_prediction": float(pred[mask].mean())}
 
 
-def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedule, progress: bool) -> dict:
+def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedule,
+              progress: bool) -> dict:
     t0 = time.perf_counter()
     train.train_and_evaluate(config, fold_dir, experiment.model_source(train_cols),
-                             experiment.model_source(held_cols), schedule=schedule, progress=progress)
+                             experiment.model_source(held_cols), schedule=schedule,
+                             progress=progress)
     rp = predict.load(fold_dir)
-    times = np.asarray(time_encoding.encode(held_cols["hour"], held_cols["minute"], held_cols["day"],
-                                            held_cols["month"], fields=config.time_fields,
+    times = np.asarray(time_encoding.encode(held_cols["hour"], held_cols["minute"],
+                                            held_cols["day"], held_cols["month"],
+                                            fields=config.time_fields,
                                             encoding=config.time_encoding))
     label, mask = held_cols["label"], held_cols["label_mask"].astype(bool)
     tr_label, tr_mask = train_cols["label"], train_cols["label_mask"].astype(bool)
     preds = {
         "rp": rp(held_cols["patch"], held_cols["xy_normalized"], times),
         "per_slot_mean": evaluation.per_slot_mean(tr_label, tr_mask, len(label)),
-        "slot_conditioned_mean": evaluation.slot_conditioned_mean(tr_label, tr_mask, train_cols["slot"],
-                                                                  held_cols["slot"]),
+        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
+            tr_label, tr_mask, train_cols["slot"], held_cols["slot"]),
         "descriptor_knn": evaluation.descriptor_knn(train_cols["descriptor"], tr_label, tr_mask,
                                                     held_cols["descriptor"], k=config.knn_k),
     }
@@ -149,7 +155,8 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
                            experiment.subset(train_columns, mask), schedule, progress)
         folds[name] = {"held_out": held, **result}
         experiment.write_json(path, {"folds": {**done, **folds}, "config": config.to_dict()})
-    result = {"folds": folds, "summary": summarize(list(folds.values())), "config": config.to_dict()}
+    result = {"folds": folds, "summary": summarize(list(folds.values())),
+              "config": config.to_dict()}
     experiment.write_json(path, result)
     tmp = workdir / ".crossval.md.tmp"
     tmp.write_text(markdown(result))
@@ -159,7 +166,8 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
 
 def markdown(result: dict) -> str:
     """A table of every fold (MAE of each method) and the summary, for crossval.md."""
-    head = "| held out | points | GT mean | RP | per-slot mean | slot-conditioned | descriptor kNN |"
+    head = ("| held out | points | GT mean | RP | per-slot mean | slot-conditioned "
+            "| descriptor kNN |")
     lines = ["# Cross-validation over the training viewpoints", "",
              "Each row: trained on the other training viewpoints, scored on these (test MAE over "
              "valid slots). The test split is not read.", "", head, "|---" * 7 + "|"]
@@ -171,7 +179,8 @@ def markdown(result: dict) -> str:
         lines.append(f"| {', '.join(f['held_out'])} | {f['counts']['held_out']} | "
                      f"{f['ground_truth_mean']:.3f} | " + " | ".join(cells) + " |")
     sm = result["summary"]
-    lines.append("| **mean** | | | " + " | ".join(f"{sm['mean_mae'][m]:.4f}" for m in METHODS) + " |")
+    means = " | ".join(f"{sm['mean_mae'][m]:.4f}" for m in METHODS)
+    lines.append(f"| **mean** | | | {means} |")
     lines.append("")
     for m in METHODS[1:]:
         g = sm["rp_mae_margin"][m]

@@ -15,14 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import platform, predict, schedule as schedule_lib, time_encoding, train
+from rp_jax import platform, predict, time_encoding, train
+from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default
 from rp_jax.datasets import input_pipeline, learnable_task
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].strip("`"))
-    parser.add_argument("--workdir", default="runs/demo_learnable_task", help="run directory (resumes if present)")
+    parser.add_argument("--workdir", default="runs/demo_learnable_task",
+                        help="run directory (resumes if present)")
     parser.add_argument("--epochs", type=int, default=None, help="override config.num_epochs")
     args = parser.parse_args(argv)
     platform.configure_cpu()
@@ -31,8 +33,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.epochs is not None:
         config.num_epochs = args.epochs
     schedule = schedule_lib.preset(config.schedule)
-    train_rec = learnable_task.make_learnable_task(config.num_train_points, schedule, seed=config.seed)
-    val_rec = learnable_task.make_learnable_task(config.num_val_points, schedule, seed=config.seed + 1)
+    train_rec = learnable_task.make_learnable_task(config.num_train_points, schedule,
+                                                   seed=config.seed)
+    val_rec = learnable_task.make_learnable_task(config.num_val_points, schedule,
+                                                 seed=config.seed + 1)
     keys = input_pipeline.MODEL_KEYS
     print(f"learnable task: {len(train_rec['patch'])} train / {len(val_rec['patch'])} val points, "
           f"T={schedule.num_timestamps} ({schedule.labels[0]}..{schedule.labels[-1]})")
@@ -59,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _times(rec, rp):
     return np.asarray(time_encoding.encode(rec["hour"], rec["minute"], rec["day"], rec["month"],
-                                           fields=rp.config.time_fields, encoding=rp.config.time_encoding))
+                                           fields=rp.config.time_fields,
+                                           encoding=rp.config.time_encoding))
 
 
 if __name__ == "__main__":

@@ -79,8 +79,8 @@ def slot_conditioned_mean(
     table = np.tile(fallback, (T, 1))
     for s in np.unique(train_slot):
         sel = train_slot == s
-        table[s] = np.where(train_mask[sel].any(0), np.nan_to_num(average_curve(train_label[sel], train_mask[sel])),
-                            fallback)
+        curve = np.nan_to_num(average_curve(train_label[sel], train_mask[sel]))
+        table[s] = np.where(train_mask[sel].any(0), curve, fallback)
     return table[np.asarray(test_slot)]
 
 

@@ -16,7 +16,7 @@ model composes with ``jax.jit``, ``jax.vmap`` and ``jax.grad`` in users' own cod
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import flax.linen as nn
 import jax

@@ -21,16 +21,19 @@ import dataclasses
 import datetime as dt
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-from jax.sharding import NamedSharding, PartitionSpec as P
+from jax.sharding import NamedSharding
+from jax.sharding import PartitionSpec as P
 
-from rp_jax import checkpoints, model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax import checkpoints, time_encoding
+from rp_jax import model as model_lib
+from rp_jax import schedule as schedule_lib
 from rp_jax.platform import make_mesh
 
 __all__ = ["Predictor", "load", "repeatability", "at_time", "encode_times"]
@@ -64,7 +67,8 @@ def encode_times(times: Sequence[dt.datetime], config) -> np.ndarray:
     """Datetimes (read on their own wall clock) -> [N, d] time features of ``config``."""
     f = time_encoding.fields_from_datetimes(times)
     return np.asarray(time_encoding.encode(f["hour"], f["minute"], f["day"], f["month"],
-                                           fields=config.time_fields, encoding=config.time_encoding))
+                                           fields=config.time_fields,
+                                           encoding=config.time_encoding))
 
 
 def at_time(scores, schedule: schedule_lib.TimeSchedule, when: dt.datetime | Sequence[dt.datetime]):
@@ -84,7 +88,8 @@ def at_time(scores, schedule: schedule_lib.TimeSchedule, when: dt.datetime | Seq
     scores = np.asarray(scores)
     T = schedule.num_timestamps
     if scores.shape[-1] != T:
-        raise ValueError(f"scores have {scores.shape[-1]} timestamps, schedule {schedule.name!r} has {T}")
+        raise ValueError(f"scores have {scores.shape[-1]} timestamps, "
+                         f"schedule {schedule.name!r} has {T}")
     whens = [when] if isinstance(when, dt.datetime) else list(when)
     offsets = np.array([schedule.offset_of(w) for w in whens], np.float64)
     slots = np.asarray(schedule.offsets, np.float64)
@@ -92,9 +97,12 @@ def at_time(scores, schedule: schedule_lib.TimeSchedule, when: dt.datetime | Seq
     o = np.where(offsets < slots[0], offsets + schedule.period, offsets)
     j = np.clip(np.searchsorted(ext, o, side="right") - 1, 0, T - 1)
     w = (o - ext[j]) / (ext[j + 1] - ext[j])
-    a = np.take(scores, j, axis=-1) if len(whens) == 1 else np.take_along_axis(scores, j[:, None], -1)[:, 0]
     b_idx = (j + 1) % T
-    b = np.take(scores, b_idx, axis=-1) if len(whens) == 1 else np.take_along_axis(scores, b_idx[:, None], -1)[:, 0]
+    if len(whens) == 1:
+        a, b = np.take(scores, j, axis=-1), np.take(scores, b_idx, axis=-1)
+    else:
+        a = np.take_along_axis(scores, j[:, None], -1)[:, 0]
+        b = np.take_along_axis(scores, b_idx[:, None], -1)[:, 0]
     out = (1 - w) * a + w * b
     return out[..., 0] if len(whens) == 1 else out
 
@@ -130,7 +138,8 @@ class Predictor:
     def num_timestamps(self) -> int:
         return self.schedule.num_timestamps
 
-    def __call__(self, patches, xy, times, *, image_size: tuple[int, int] | None = None) -> np.ndarray:
+    def __call__(self, patches, xy, times, *,
+                 image_size: tuple[int, int] | None = None) -> np.ndarray:
         """Repeatability vectors of N interest points.
 
         Args:
@@ -159,7 +168,8 @@ class Predictor:
             feats = encode_times(list(times), self.config)
         d = time_encoding.num_features(self.config.time_fields)
         if feats.shape != (n, d):
-            raise ValueError(f"times must be N={n} datetimes or an [N, {d}] array, got shape {feats.shape}")
+            raise ValueError(f"times must be N={n} datetimes or an [N, {d}] array, "
+                             f"got shape {feats.shape}")
         for name, arr in (("patches", patches), ("xy", xy), ("times", feats)):
             if np.issubdtype(arr.dtype, np.floating) and not np.all(np.isfinite(arr)):
                 raise ValueError(f"{name} contains NaN or infinite values")
@@ -176,7 +186,8 @@ class Predictor:
         return out
 
 
-def load(workdir: str | os.PathLike, *, step: int | None = None, batch_size: int = 512) -> Predictor:
+def load(workdir: str | os.PathLike, *, step: int | None = None,
+         batch_size: int = 512) -> Predictor:
     """Load a trained workdir (``config.json``, ``schedule.json``, orbax checkpoints).
 
     Raises:

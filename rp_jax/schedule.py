@@ -20,8 +20,9 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -156,7 +157,7 @@ class TimeSchedule:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "TimeSchedule":
+    def from_dict(cls, d: dict) -> TimeSchedule:
         return cls(
             name=d["name"],
             cycle=d["cycle"],
@@ -198,7 +199,7 @@ def explicit_dates(
     A capture is compared with the date at midnight, so a capture on the slot's own day is
     at most 24 h away; give ``tolerance`` in whole days with that in mind.
     """
-    ref = [dt.datetime(2021, m, d, tzinfo=dt.timezone.utc) for m, d in dates]
+    ref = [dt.datetime(2021, m, d, tzinfo=dt.UTC) for m, d in dates]
     offsets = tuple(_offset_in_cycle(r, "year") for r in ref)
     return TimeSchedule(
         name, "year", offsets, tolerance.total_seconds(), tuple(r.strftime("%b %d") for r in ref)
@@ -259,7 +260,8 @@ def load_spec(name: str) -> dict:
     return json.loads(path.read_text())
 
 
-PRESETS = ("hours_of_day", "days_of_year", "hours_of_year", "webcam_clipart", "cmu_seasons", "robotcar")
+PRESETS = ("hours_of_day", "days_of_year", "hours_of_year", "webcam_clipart", "cmu_seasons",
+           "robotcar")
 
 
 def preset(name: str) -> TimeSchedule:

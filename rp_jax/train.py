@@ -22,8 +22,9 @@ import json
 import logging
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import flax
 import jax
@@ -33,9 +34,12 @@ import numpy as np
 import optax
 import orbax.checkpoint as ocp
 from flax.training import train_state
-from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
+from jax.sharding import Mesh, NamedSharding
+from jax.sharding import PartitionSpec as P
 
-from rp_jax import checkpoints, losses, model as model_lib, schedule as schedule_lib, time_encoding
+from rp_jax import checkpoints, losses, time_encoding
+from rp_jax import model as model_lib
+from rp_jax import schedule as schedule_lib
 from rp_jax.datasets import input_pipeline
 from rp_jax.model import create_model
 from rp_jax.platform import make_mesh
@@ -79,7 +83,8 @@ def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -
     params = model_lib.init_params(net, rng, time_encoding.num_features(config.time_fields))
     tx = optax.chain(
         optax.clip_by_global_norm(config.grad_clip),
-        optax.adamw(_learning_rate_schedule(config, steps_per_epoch), weight_decay=config.weight_decay),
+        optax.adamw(_learning_rate_schedule(config, steps_per_epoch),
+                    weight_decay=config.weight_decay),
     )
     return TrainState.create(apply_fn=net.apply, params=params, tx=tx)
 
@@ -122,7 +127,8 @@ def _zoom_about_centre(patch: jnp.ndarray, factor: jnp.ndarray) -> jnp.ndarray:
     def weights(n: int) -> jnp.ndarray:
         c = (n - 1) / 2.0
         src = c + (jnp.arange(n, dtype=jnp.float32) - c) / factor
-        return jnp.maximum(0.0, 1.0 - jnp.abs(src[:, None] - jnp.arange(n, dtype=jnp.float32)[None, :]))
+        grid = jnp.arange(n, dtype=jnp.float32)
+        return jnp.maximum(0.0, 1.0 - jnp.abs(src[:, None] - grid[None, :]))
 
     return jnp.einsum("ij,jkc,lk->ilc", weights(patch.shape[0]), patch, weights(patch.shape[1]))
 
@@ -211,7 +217,8 @@ def _best_val_so_far(metrics_path: Path) -> float:
     """Lowest validation MSE recorded in metrics.jsonl (inf if none): resumes model selection."""
     if not metrics_path.exists():
         return float("inf")
-    vals = [json.loads(l).get("val_mse") for l in metrics_path.read_text().splitlines() if l.strip()]
+    lines = metrics_path.read_text().splitlines()
+    vals = [json.loads(line).get("val_mse") for line in lines if line.strip()]
     vals = [v for v in vals if v is not None]
     return min(vals) if vals else float("inf")
 
@@ -276,7 +283,8 @@ def train_and_evaluate(
     T = schedule.num_timestamps
     label_shape = train_source.arrays["label"].shape
     if label_shape[1:] != (T,):
-        raise ValueError(f"labels have shape {label_shape[1:]} but schedule {schedule.name!r} has T={T}")
+        raise ValueError(f"labels have shape {label_shape[1:]} but schedule {schedule.name!r} "
+                         f"has T={T}")
 
     mesh = make_mesh(config.num_devices)
     n_dev = mesh.devices.size
@@ -292,7 +300,8 @@ def train_and_evaluate(
     write_run_files(workdir, config, schedule)
     state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
     compiled = _compile(config, mesh, state.apply_fn)
-    manager = checkpoints.writer(workdir / checkpoints.CHECKPOINTS_DIR, config.max_checkpoints_to_keep)
+    manager = checkpoints.writer(workdir / checkpoints.CHECKPOINTS_DIR,
+                                 config.max_checkpoints_to_keep)
     start_epoch = 0
     if manager.latest_step() is not None:
         restored = manager.restore(
@@ -301,7 +310,8 @@ def train_and_evaluate(
         state = state.replace(params=restored["params"], opt_state=restored["opt_state"],
                               step=restored["step"])
         start_epoch = int(restored["step"]) // steps_per_epoch
-        log.info("resumed from step %d (epoch %d) in %s", int(restored["step"]), start_epoch, workdir)
+        log.info("resumed from step %d (epoch %d) in %s", int(restored["step"]), start_epoch,
+                 workdir)
     state = jax.device_put(state, compiled.replicated)
 
     metrics_path = workdir / "metrics.jsonl"
@@ -310,7 +320,8 @@ def train_and_evaluate(
     best_val = _best_val_so_far(metrics_path)
     for epoch in range(start_epoch, int(config.num_epochs)):
         t0 = time.perf_counter()
-        batches = input_pipeline.epoch_batches(train_source, config.batch_size, seed=config.seed, epoch=epoch)
+        batches = input_pipeline.epoch_batches(train_source, config.batch_size, seed=config.seed,
+                                               epoch=epoch)
         losses_sum = jnp.zeros(())
         bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
                    disable=not progress, leave=False)

@@ -5,9 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from rp_jax import crossval, schedule as schedule_lib
-from rp_jax.datasets import learnable_task
 from experiments.webcam_clipart.config import get_config
+from rp_jax import crossval
+from rp_jax import schedule as schedule_lib
+from rp_jax.datasets import learnable_task
 
 
 def test_one_fold_per_viewpoint_or_dealt_into_groups():
@@ -25,7 +26,8 @@ def test_one_fold_per_viewpoint_or_dealt_into_groups():
 
 def _columns(num_viewpoints: int, per_viewpoint: int) -> dict:
     schedule = schedule_lib.preset("webcam_clipart")
-    parts = [learnable_task.make_learnable_task(per_viewpoint, schedule, seed=i) for i in range(num_viewpoints)]
+    parts = [learnable_task.make_learnable_task(per_viewpoint, schedule, seed=i)
+             for i in range(num_viewpoints)]
     cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     n = len(cols["label"])
     cols["viewpoint"] = np.repeat([f"scene_{i}" for i in range(num_viewpoints)], per_viewpoint)
@@ -45,7 +47,7 @@ def test_cross_validate_scores_each_held_out_viewpoint_and_resumes(tmp_path, mon
     cols = _columns(3, 96)
     result = crossval.cross_validate(_tiny_config(), tmp_path, cols, progress=False)
     assert sorted(result["folds"]) == ["fold_scene_0", "fold_scene_1", "fold_scene_2"]
-    for name, fold in result["folds"].items():
+    for fold in result["folds"].values():
         assert fold["counts"] == {"train": 192, "held_out": 96}
         assert set(fold["scores"]) == set(crossval.METHODS)
         for s in fold["scores"].values():
@@ -53,7 +55,8 @@ def test_cross_validate_scores_each_held_out_viewpoint_and_resumes(tmp_path, mon
         assert len(fold["rp_mae_per_epoch"]) == 2
         # the per-slot mean is the *other* viewpoints' average curve, not the held-out one's
         held = cols["viewpoint"] == fold["held_out"][0]
-        assert fold["scores"]["per_slot_mean"]["mean_prediction"] != pytest.approx(fold["ground_truth_mean"])
+        mean_prediction = fold["scores"]["per_slot_mean"]["mean_prediction"]
+        assert mean_prediction != pytest.approx(fold["ground_truth_mean"])
         assert held.sum() == 96
     sm = result["summary"]
     assert sm["num_folds"] == 3 and 0 <= sm["rp_wins"]["per_slot_mean"] <= 3

@@ -38,7 +38,8 @@ def test_slot_conditioned_mean_uses_capture_slot_and_falls_back():
 def test_descriptor_knn_finds_neighbours():
     rng = np.random.default_rng(0)
     centres = rng.normal(size=(2, 16)) * 10
-    desc = np.concatenate([centres[0] + rng.normal(size=(5, 16)), centres[1] + rng.normal(size=(5, 16))])
+    desc = np.concatenate([centres[0] + rng.normal(size=(5, 16)),
+                           centres[1] + rng.normal(size=(5, 16))])
     label = np.concatenate([np.tile([1.0, 0.0], (5, 1)), np.tile([0.0, 1.0], (5, 1))])
     pred = ev.descriptor_knn(desc, label, np.ones_like(label, bool), centres, k=3, block=1)
     np.testing.assert_allclose(pred, [[1.0, 0.0], [0.0, 1.0]])

@@ -11,7 +11,8 @@ from rp_jax import model
 def test_gem_is_mean_at_p1_and_tends_to_max():
     zs = jnp.asarray(np.random.default_rng(0).uniform(0.1, 2.0, (3, 64)), jnp.float32)
     np.testing.assert_allclose(model.gem_pool(zs, 1.0), zs.mean(0), rtol=1e-5)
-    gaps = [float(jnp.abs(model.gem_pool(zs, p) - zs.max(0)).max()) for p in (2.0, 10.0, 100.0, 1000.0)]
+    gaps = [float(jnp.abs(model.gem_pool(zs, p) - zs.max(0)).max())
+            for p in (2.0, 10.0, 100.0, 1000.0)]
     assert all(b < a for a, b in zip(gaps, gaps[1:]))
     assert gaps[-1] < 0.01
 

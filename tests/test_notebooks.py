@@ -19,7 +19,8 @@ def _execute(name: str, env: dict, cwd: Path):
     old = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
     try:
-        NotebookClient(nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(cwd)}}).execute()
+        NotebookClient(nb, timeout=600, kernel_name="python3",
+                       resources={"metadata": {"path": str(cwd)}}).execute()
     finally:
         for k, v in old.items():
             if v is None:
@@ -36,7 +37,8 @@ def test_quickstart_then_explore(tmp_path):
            "RP_JAX_WORKDIR": str(work / "run"), "RP_JAX_TFDS_DIR": str(work / "tfds"),
            "RP_JAX_NO_CPU_SETUP": "1"}
     nb = _execute("quickstart.ipynb", env, tmp_path)
-    outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
+                      for o in c.get("outputs", []))
     assert "test_mae" in outputs and "repeatability at 17:15" in outputs
     assert (work / "run" / "metrics.json").exists()
     nb = _execute("explore_predictions.ipynb", env, tmp_path)

@@ -9,8 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rp_jax import predict, schedule as schedule_lib, train
-from rp_jax.datasets import input_pipeline as ip, learnable_task
+from rp_jax import predict, train
+from rp_jax import schedule as schedule_lib
+from rp_jax.datasets import input_pipeline as ip
+from rp_jax.datasets import learnable_task
 from tests.test_train import SCHEDULE, small_config
 
 
@@ -37,7 +39,8 @@ def test_load_and_call(workdir):
     np.testing.assert_allclose(rp_small(patches, xy, times, image_size=(640, 480)), out, atol=1e-5)
     # Same as the pure function.
     feats = predict.encode_times(times, rp.config)
-    pure = predict.repeatability(rp.params, patches, xy / np.array([640, 480]), feats, config=rp.config)
+    pure = predict.repeatability(rp.params, patches, xy / np.array([640, 480]), feats,
+                                 config=rp.config)
     np.testing.assert_allclose(np.asarray(pure), out, atol=1e-5)
 
 
@@ -94,11 +97,14 @@ def test_at_time_interpolates_between_slots_and_wraps():
     scores[1] = np.linspace(0, 1, 21)
     at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 8, 15))
     np.testing.assert_allclose(at, [0.75, 0.025], atol=1e-6)
-    np.testing.assert_allclose(predict.at_time(scores, s, dt.datetime(2020, 1, 1, 18, 0)), [0.0, 1.0])
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 18, 0))
+    np.testing.assert_allclose(at, [0.0, 1.0])
     # Between 18:00 and 8:00 of the next day the segment wraps: 1:00 is half way.
-    np.testing.assert_allclose(predict.at_time(scores, s, dt.datetime(2020, 1, 1, 1, 0)), [0.5, 0.5], atol=1e-6)
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 1, 0))
+    np.testing.assert_allclose(at, [0.5, 0.5], atol=1e-6)
     # One time per row.
-    per_row = predict.at_time(scores, s, [dt.datetime(2020, 1, 1, 8, 0), dt.datetime(2020, 1, 1, 18, 0)])
+    per_row = predict.at_time(scores, s,
+                              [dt.datetime(2020, 1, 1, 8, 0), dt.datetime(2020, 1, 1, 18, 0)])
     np.testing.assert_allclose(per_row, [1.0, 1.0])
     with pytest.raises(ValueError, match="timestamps"):
         predict.at_time(np.zeros((1, 5)), s, dt.datetime(2020, 1, 1))

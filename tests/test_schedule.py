@@ -49,7 +49,7 @@ def test_slot_of_regular_with_tolerance():
 
 def test_slot_of_reads_local_wall_clock():
     s = schedule.preset("webcam_clipart")
-    utc_noon = dt.datetime(2020, 5, 3, 16, 0, tzinfo=dt.timezone.utc)  # 12:00 in New York (EDT)
+    utc_noon = dt.datetime(2020, 5, 3, 16, 0, tzinfo=dt.UTC)  # 12:00 in New York (EDT)
     assert s.slot_of(utc_noon.astimezone(NY))[1] == 8
     with pytest.raises(ValueError, match="timezone-aware"):
         s.slot_of(dt.datetime(2020, 5, 3, 12, 0))

@@ -31,8 +31,8 @@ def test_cyclic_is_continuous_across_midnight_and_new_year():
     for a in (dt.datetime(2020, 5, 3, 23, 59), dt.datetime(2020, 12, 31, 23, 59)):
         e = _enc([a, a + minute], fields="hour_of_year", encoding="cyclic")
         assert np.abs(e[0] - e[1]).max() < 0.02  # one minute / one day apart: nearly equal
-    raw = _enc([dt.datetime(2020, 5, 3, 23, 59), dt.datetime(2020, 5, 4, 0, 0)], fields="time_of_day",
-               encoding="raw")
+    raw = _enc([dt.datetime(2020, 5, 3, 23, 59), dt.datetime(2020, 5, 4, 0, 0)],
+               fields="time_of_day", encoding="raw")
     assert np.abs(raw[0] - raw[1]).max() > 0.9  # the raw encoding jumps, as documented
 
 

@@ -1,15 +1,16 @@
 """Tests of rp_jax.train: one compilation, learning, resume, data parallelism."""
 
-import functools
 
 import chex
 import jax
 import numpy as np
 import pytest
 
-from rp_jax import platform, schedule as schedule_lib, train
+from rp_jax import platform, train
+from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default
-from rp_jax.datasets import input_pipeline as ip, learnable_task
+from rp_jax.datasets import input_pipeline as ip
+from rp_jax.datasets import learnable_task
 
 SCHEDULE = schedule_lib.preset("webcam_clipart")
 
@@ -63,7 +64,7 @@ def test_learns_the_task_far_below_the_per_slot_mean(tmp_path):
     rec_val = learnable_task.make_learnable_task(500, SCHEDULE, seed=1)
     train.train_and_evaluate(config, tmp_path, ip.ArraySource(rec_train, ip.MODEL_KEYS),
                              ip.ArraySource(rec_val, ip.MODEL_KEYS), progress=False)
-    last = [l for l in (tmp_path / "metrics.jsonl").read_text().splitlines()][-1]
+    last = (tmp_path / "metrics.jsonl").read_text().splitlines()[-1]
     import json
 
     val_mse = json.loads(last)["val_mse"]
@@ -91,7 +92,7 @@ def test_resume_equals_uninterrupted(tmp_path):
     assert int(resumed.step) == int(full.step)
     chex.assert_trees_all_close(train.params_to_numpy(resumed.params),
                                 train.params_to_numpy(full.params), atol=1e-6)
-    epochs = [l for l in (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    epochs = (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()
     assert len(epochs) == 3
 
 
@@ -99,7 +100,8 @@ def test_refuses_a_workdir_of_another_config(tmp_path):
     src = task(64, 0)
     train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
     with pytest.raises(ValueError, match="different config"):
-        train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1.0), tmp_path, src, progress=False)
+        train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1.0), tmp_path, src,
+                                 progress=False)
 
 
 @pytest.mark.skipif(len(jax.local_devices()) < 2, reason="needs 2 forced CPU devices (conftest)")
@@ -123,7 +125,8 @@ def test_bad_sizes_raise(tmp_path):
     with pytest.raises(ValueError, match="fewer than one batch"):
         train.train_and_evaluate(small_config(), tmp_path, task(8, 0), progress=False)
     with pytest.raises(ValueError, match="devices"):
-        train.train_and_evaluate(small_config(batch_size=33), tmp_path / "x", task(64, 0), progress=False)
+        train.train_and_evaluate(small_config(batch_size=33), tmp_path / "x", task(64, 0),
+                                 progress=False)
 
 
 def test_augment_patches_is_seeded_and_mirrors():
@@ -180,7 +183,8 @@ def test_keep_best_saves_the_best_validation_epoch(tmp_path):
     config.augment.brightness, config.augment.flip = 0.1, True
     src, val = task(256, 0), task(64, 1)
     train.train_and_evaluate(config, tmp_path, src, val, progress=False)
-    records = [json.loads(l) for l in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    lines = (tmp_path / "metrics.jsonl").read_text().splitlines()
+    records = [json.loads(line) for line in lines]
     best = min(records, key=lambda r: r["val_mse"])
     assert best.get("best") and (tmp_path / "best" / str(best["step"])).exists()
     rp = predict.load(tmp_path)  # prefers best/
@@ -188,8 +192,10 @@ def test_keep_best_saves_the_best_validation_epoch(tmp_path):
     b = ip.ArraySource(learnable_task.make_learnable_task(64, SCHEDULE, seed=1), ip.MODEL_KEYS)
     from rp_jax import time_encoding
 
-    t = np.asarray(time_encoding.encode(b.arrays["hour"], b.arrays["minute"], b.arrays["day"], b.arrays["month"]))
-    mse_best = float(((rp(b.arrays["patch"], b.arrays["xy_normalized"], t) - b.arrays["label"]) ** 2).sum(1).mean())
+    cols = b.arrays
+    t = np.asarray(time_encoding.encode(cols["hour"], cols["minute"], cols["day"], cols["month"]))
+    pred = rp(cols["patch"], cols["xy_normalized"], t)
+    mse_best = float(((pred - cols["label"]) ** 2).sum(1).mean())
     assert mse_best == pytest.approx(best["val_mse"], rel=1e-3)
     if best["step"] != records[-1]["step"]:
         assert not np.allclose(rp.params["fc6"]["kernel"], last.params["fc6"]["kernel"])

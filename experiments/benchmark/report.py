@@ -50,12 +50,13 @@ def _model_table(stage: str, entry: dict[str, Any]) -> list[str]:
         f"## {stage}",
         "",
         (
-            f"{unit}; batch {entry['batch']}, {entry['steps_per_measurement']} steps per measurement, "
-            f"{entry['repeats']} interleaved rounds; ratio = median over rounds of variant / "
-            f"`{peer_name}` measured in the same round."
+            f"{unit}; batch {entry['batch']}, {entry['steps_per_measurement']} steps per "
+            f"measurement, {entry['repeats']} interleaved rounds; ratio = median over rounds of "
+            f"variant / `{peer_name}` measured in the same round."
         ),
         "",
-        f"| variant | median | min | max | ratio to {peer_name} | GFLOP/sample | % fp32 peak | what |",
+        f"| variant | median | min | max | ratio to {peer_name} | GFLOP/sample | % fp32 peak "
+        "| what |",
         "|---|---|---|---|---|---|---|---|",
     ]
     variants = {**entry["ours"]["variants"], **entry["peer"]["variants"]}
@@ -81,10 +82,11 @@ def _model_table(stage: str, entry: dict[str, Any]) -> list[str]:
         lines += [
             "",
             (
-                f"FP32 peak assumed: {cpu['fp32_peak_flops'] / 1e9:.0f} GFLOP/s = {cpu['assumption']}; "
-                f"CPU: {cpu['model']}; AMX-BF16: {cpu['amx_bf16']}. FLOPs per sample from XLA's cost "
-                "analysis of the jitted step on one device (the bfloat16 row counts the same "
-                "operations); the PyTorch rows use the float32 count of the same network."
+                f"FP32 peak assumed: {cpu['fp32_peak_flops'] / 1e9:.0f} GFLOP/s = "
+                f"{cpu['assumption']}; CPU: {cpu['model']}; AMX-BF16: {cpu['amx_bf16']}. FLOPs per "
+                "sample from XLA's cost analysis of the jitted step on one device (the bfloat16 "
+                "row counts the same operations); the PyTorch rows use the float32 count of the "
+                "same network."
             ),
         ]
     eq = entry["peer"].get("equality")
@@ -93,8 +95,9 @@ def _model_table(stage: str, entry: dict[str, Any]) -> list[str]:
             "",
             (
                 f"Same network: PyTorch vs ours on copied weights: outputs max |diff| "
-                f"{eq['output_max_abs_diff']:.2e}, encoder features {eq['feature_max_abs_diff']:.2e}, "
-                f"loss {eq['loss_abs_diff']:.2e}, gradients (relative) {eq['grad_max_rel_diff']:.2e}."
+                f"{eq['output_max_abs_diff']:.2e}, encoder features "
+                f"{eq['feature_max_abs_diff']:.2e}, loss {eq['loss_abs_diff']:.2e}, gradients "
+                f"(relative) {eq['grad_max_rel_diff']:.2e}."
             ),
         ]
     return lines + [""]
@@ -106,8 +109,9 @@ def _match_table(entry: dict[str, Any]) -> list[str]:
         "",
         (
             f"{entry['unit']} over all ordered pairs of {entry['num_images']} images x "
-            f"{entry['keypoints_per_image']} SIFT-like descriptors (128-d, integer-valued); results "
-            f"(nearest neighbour, ratio test) identical: {entry['identical']}; {entry['repeats']} rounds."
+            f"{entry['keypoints_per_image']} SIFT-like descriptors (128-d, integer-valued); "
+            f"results (nearest neighbour, ratio test) identical: {entry['identical']}; "
+            f"{entry['repeats']} rounds."
         ),
         "",
         "| side | median | min | max | ratio to peer | what |",
@@ -132,9 +136,9 @@ def _groundtruth_table(entry: dict[str, Any]) -> list[str]:
         "",
         (
             f"`{entry['ours']['variant']}` on a synthetic static viewpoint, images "
-            f"{entry['image_size'][0]}x{entry['image_size'][1]}, up to {entry['max_keypoints']} SIFT points "
-            f"each; one fresh process per run (peak RSS = ru_maxrss); {entry['repeats']} runs per size. "
-            "No peer."
+            f"{entry['image_size'][0]}x{entry['image_size'][1]}, up to {entry['max_keypoints']} "
+            "SIFT points each; one fresh process per run (peak RSS = ru_maxrss); "
+            f"{entry['repeats']} runs per size. No peer."
         ),
         "",
         "| images | median s | min s | max s | interest points | peak RSS MB | RSS growth MB |",
@@ -171,8 +175,8 @@ def _summarize_table(entry: dict[str, Any], predict: dict[str, Any] | None = Non
             "in one forward pass): the times exclude the network. Each size runs in a fresh "
             f"process; ours and K-cover alternate over {entry['repeats']} rounds (each round a "
             "random query timestamp). Peak RSS: the process's high-water mark during the run "
-            f"({entry['memory_method']}); extra: above the resident map. Ratio = median over rounds "
-            "of K-cover seconds / our seconds."
+            f"({entry['memory_method']}); extra: above the resident map. Ratio = median over "
+            "rounds of K-cover seconds / our seconds."
         ),
         "",
         (

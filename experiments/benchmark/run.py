@@ -19,9 +19,9 @@ __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 ALL_STAGES = ("train", "predict", "match", "groundtruth", "summarize", "localize")
 NOTES = [
     (
-        "Each JAX configuration and the PyTorch peer run in their own worker process, started and "
-        "warmed up together, then timed in interleaved rounds (A B C ... then ... C B A) so that load "
-        "from other users of this shared machine falls on all of them alike."
+        "Each JAX configuration and the PyTorch peer run in their own worker process, started "
+        "and warmed up together, then timed in interleaved rounds (A B C ... then ... C B A) so "
+        "that load from other users of this shared machine falls on all of them alike."
     ),
     "Ratios are medians over rounds of (variant speed / peer speed in the same round).",
     (

@@ -706,7 +706,7 @@ def run_model_stage(
             try:
                 info[n] = workers[n].read()["ready"]
             except RuntimeError as e:
-                if n == PEER_DEFAULT or n == OURS_DEFAULT:
+                if n in (PEER_DEFAULT, OURS_DEFAULT):
                     raise
                 unavailable[n] = str(e).splitlines()[-1][:300]
                 workers.pop(n).close()
@@ -865,7 +865,9 @@ def run_match_stage(
         "peer": {
             **summarize_samples(speeds["peer"]),
             "variant": "cv2.BFMatcher(NORM_L2).knnMatch(k=2)",
-            "description": f"OpenCV {cv2.__version__}, cv2.setNumThreads(2), one call per ordered pair",
+            "description": (
+                f"OpenCV {cv2.__version__}, cv2.setNumThreads(2), one call per ordered pair"
+            ),
         },
         "ratio": pairwise_ratio(speeds["ours"], speeds["peer"]),
         "identical": True,
@@ -902,7 +904,7 @@ def run_groundtruth_stage(size_name: str, repeats: int, progress: bool = True) -
         for n in counts
     }
     jobs = [(r, n) for r in range(repeats) for n in counts]
-    for r, n in tqdm(jobs, desc="groundtruth", disable=not progress, leave=False):
+    for _, n in tqdm(jobs, desc="groundtruth", disable=not progress, leave=False):
         proc = subprocess.run(
             [
                 sys.executable,
@@ -1014,7 +1016,7 @@ def _viewpoint_images(num_images: int, wh: tuple[int, int], seed: int) -> list[n
         img += amp * blurred / (blurred.std() + 1e-6)
     img = (img - img.min()) / (img.max() - img.min()) * 255.0
     out = []
-    for i in range(num_images):
+    for _ in range(num_images):
         dx, dy = rng.uniform(-0.5, 0.5, 2)
         M = np.float32([[1, 0, dx], [0, 1, dy]])
         moved = cv2.warpAffine(img, M, (w, h), borderMode=cv2.BORDER_REFLECT_101)

@@ -11,8 +11,9 @@ Full size: the number of epochs was chosen on a held-out training scene (1 of 7,
 3 of 8, then rising as the network fits its 6 scenes), so the default run trains 3 epochs
 on all 7 training scenes. Colour and zoom augmentation (``--config.augment.colour=0.15
 --config.augment.zoom=0.3``) changed the MAE on 3 held-out training scenes (leave-one-out as
-``--cross-validate``, world version 1) by -2.1 %, +0.5 % and +0.8 %, so they are left off. Expected on the synthetic world (version 2): test
-MAE 0.117 against 0.192 for the per-slot mean and 0.189 for the slot-conditioned mean.
+``--cross-validate``, world version 1) by -2.1 %, +0.5 % and +0.8 %, so they are left off.
+Expected on the synthetic world (version 2): test MAE 0.117 against 0.192 for the per-slot
+mean and 0.189 for the slot-conditioned mean.
 """
 
 from rp_jax.configs import experiment

@@ -65,7 +65,8 @@ def num_train_steps(num_records: int, batch_size: int) -> int:
     return num_records // batch_size
 
 
-def epoch_batches(source: ArraySource, batch_size: int, *, seed: int, epoch: int) -> grain.MapDataset:
+def epoch_batches(source: ArraySource, batch_size: int, *, seed: int,
+                  epoch: int) -> grain.MapDataset:
     """The training batches of one epoch as a random-access grain dataset.
 
     ``epoch_batches(...)[i]`` is the i-th batch of the epoch; the order depends only on
@@ -91,7 +92,8 @@ def _with_mask(batch: dict, n_real: int) -> dict:
 
 
 def eval_batches(source: ArraySource, batch_size: int) -> Iterator[dict[str, np.ndarray]]:
-    """All records in order, in fixed-shape batches; the last is padded, ``mask`` marks real rows."""
+    """All records in order, in fixed-shape batches; the last is padded, ``mask`` marks real
+    rows."""
     n = len(source)
     for start in range(0, n, batch_size):
         idx = np.arange(start, min(start + batch_size, n))

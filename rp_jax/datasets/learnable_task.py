@@ -27,7 +27,8 @@ __all__ = ["make_learnable_task"]
 KINDS = ("facade", "foliage", "transient")
 
 
-def make_learnable_task(num_points: int, schedule: TimeSchedule, *, seed: int = 0) -> dict[str, np.ndarray]:
+def make_learnable_task(num_points: int, schedule: TimeSchedule, *,
+                        seed: int = 0) -> dict[str, np.ndarray]:
     """Generate ``num_points`` records in the keypoint-record layout.
 
     Args:
@@ -62,7 +63,8 @@ def make_learnable_task(num_points: int, schedule: TimeSchedule, *, seed: int = 
     img = np.empty((num_points, 64, 64, 3), np.float32)
     f, g, c = kind == 0, kind == 1, kind == 2
     img[f] = 0.5 + 0.4 * (contrast[f, None, None] * stripes[f])[..., None]
-    img[g] = np.stack([0.25 + 0.1 * blobs[g], 0.3 + 0.3 * greenness[g, None, None] * (1 + 0.3 * blobs[g]),
+    img[g] = np.stack([0.25 + 0.1 * blobs[g],
+                       0.3 + 0.3 * greenness[g, None, None] * (1 + 0.3 * blobs[g]),
                        0.2 + 0.05 * blobs[g]], axis=-1)
     img[c] = 0.45 + disc[c, ..., None] * (hue[c, None, None, :] - 0.45)
     img += rng.normal(0, 0.02, img.shape).astype(np.float32)

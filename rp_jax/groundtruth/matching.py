@@ -24,8 +24,9 @@ before choosing, which makes the result agree with OpenCV except for distance di
 below float32 rounding.
 
 Distances returned are Euclidean (not squared) in float32, like OpenCV's ``DMatch.distance``;
-for Hamming, the number of differing bits (the squared distance of the bit vectors). A target image with fewer than two interest
-points yields no match: the ratio test is undefined there (OpenCV returns one neighbour).
+for Hamming, the number of differing bits (the squared distance of the bit vectors). A target
+image with fewer than two interest points yields no match: the ratio test is undefined there
+(OpenCV returns one neighbour).
 """
 
 from __future__ import annotations

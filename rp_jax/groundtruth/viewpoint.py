@@ -277,7 +277,8 @@ def image_features(
             cached.pop("has_category_map", None)
             return cached
         except _StaleCache:
-            logger.info("re-detecting %s: the image changed since it was cached", capture.image_path)
+            logger.info("re-detecting %s: the image changed since it was cached",
+                        capture.image_path)
         except (OSError, ValueError, zipfile.BadZipFile) as err:  # e.g. a foreign file
             logger.warning(
                 "re-detecting %s: unreadable feature cache %s (%s)", capture.image_path, path, err
@@ -752,7 +753,8 @@ def label_viewpoints(
         kwargs["matching_threads"] = 1
         # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
         # running already, and forking a multithreaded process can deadlock.
-        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        spawn = mp.get_context("spawn")
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn) as pool:
             futures = {
                 pool.submit(_label_one, vp, list(caps), kwargs, select, with_patches): vp
                 for vp, caps in viewpoints.items()

@@ -14,8 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-tfds = pytest.importorskip("tensorflow_datasets")
+import tensorflow_datasets as tfds
 
 from rp_jax.datasets import builder as builder_lib
 from rp_jax.datasets import features as features_lib
@@ -196,7 +195,8 @@ def test_synthetic_root_of_an_older_world_version_is_rendered_again(tmp_path, mo
     # The current version is kept as it is.
     root.mkdir(exist_ok=True)
     (root / "_synthetic").mkdir(exist_ok=True)
-    (root / "_synthetic" / "generation.json").write_text(json.dumps({**marker, "world": presets.WORLD_VERSION}))
+    (root / "_synthetic" / "generation.json").write_text(
+        json.dumps({**marker, "world": presets.WORLD_VERSION}))
     builder_lib.ensure_synthetic("robotcar", root, size="tiny", seed=0, workers=1)
     assert len(calls) == 1
 

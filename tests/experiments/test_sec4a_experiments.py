@@ -95,11 +95,12 @@ def test_split_validation_holds_out_whole_viewpoints():
 
 def test_cross_validate_flag_needs_two_training_viewpoints(tmp_path, capsys):
     # The tiny synthetic world has one training scene: a clear error, not a traceback.
-    argv = ["--size", "tiny", "--workdir", str(tmp_path / "run"), "--tfds-dir", str(tmp_path / "tfds"),
-            "--cross-validate"]
+    argv = ["--size", "tiny", "--workdir", str(tmp_path / "run"),
+            "--tfds-dir", str(tmp_path / "tfds"), "--cross-validate"]
     assert cli.main(argv, "webcam_clipart", webcam_config, "") == 2
     assert "at least 2 training viewpoints" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        cli.parse_flags(["--folds", "3"], "webcam_clipart", webcam_config, "", cross_validation=True)
+        cli.parse_flags(["--folds", "3"], "webcam_clipart", webcam_config, "",
+                        cross_validation=True)
     with pytest.raises(SystemExit):  # not a flag of the map-summarization experiment
         cli.parse(["--cross-validate"], "map_summarization", webcam_config, "")

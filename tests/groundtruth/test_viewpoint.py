@@ -153,7 +153,8 @@ def test_resume_redoes_only_missing_work(tmp_path):
     assert sorted(resumed.calls) == sorted(["c1s0", "c1s1", "c1s1b", "c1s2"])
 
     again = _Loader()
-    _assert_records_equal(label_viewpoint(caps, load_image=again, **kw), _without_patches(reference))
+    _assert_records_equal(label_viewpoint(caps, load_image=again, **kw),
+                          _without_patches(reference))
     assert again.calls == []  # finished viewpoint: read back
 
     # Patches are cut from the images on return (the caches hold none), identical to the
@@ -191,7 +192,8 @@ def test_attach_patches_names_an_image_that_became_unreadable(tmp_path):
     # A subset of rows (as after select_records) gets exactly the full run's patches.
     full = attach_patches(records, caps, _scenes.load_from_registry)
     rows = np.arange(0, len(records["xy"]), 7)
-    subset = attach_patches({k: v[rows] for k, v in records.items()}, caps, _scenes.load_from_registry)
+    subset = attach_patches({k: v[rows] for k, v in records.items()}, caps,
+                            _scenes.load_from_registry)
     np.testing.assert_array_equal(subset["patch"], full["patch"][rows])
 
 
@@ -263,4 +265,5 @@ def test_caches_are_redone_when_an_image_file_changes(tmp_path):
     cv2.imwrite(str(changed), cv2.cvtColor(other, cv2.COLOR_RGB2BGR))
     second = label_viewpoint(on_disk, **kw)
     rows = second["image_id"] == on_disk[0].image_id
-    assert not np.array_equal(second["xy"][rows], first["xy"][first["image_id"] == on_disk[0].image_id])
+    first_rows = first["image_id"] == on_disk[0].image_id
+    assert not np.array_equal(second["xy"][rows], first["xy"][first_rows])
