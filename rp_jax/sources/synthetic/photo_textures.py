@@ -239,7 +239,8 @@ def brick_layout() -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     for c in range(len(bed) - 1):
         a, b = int(np.ceil(bed[c])) + 8, int(bed[c + 1]) - 8  # the course's bricks, no bed joint
         prof = img[a:b].mean(0)
-        heads.append(_peaks(prof, radius=20, threshold=prof.mean() + 0.5 * (prof.max() - prof.mean())))
+        threshold = prof.mean() + 0.5 * (prof.max() - prof.mean())
+        heads.append(_peaks(prof, radius=20, threshold=threshold))
     return bed, tuple(heads)
 
 
@@ -254,8 +255,9 @@ def _prefiltered(name: str, box: int) -> tuple[np.ndarray, float]:
     img = photo(name)
     if name == "brick":
         brick_l, mortar_l = _brick_levels()
-        mortar = np.clip((img - (brick_l + 0.35 * (mortar_l - brick_l)))
-                         / (0.4 * (mortar_l - brick_l)), 0.0, 1.0)
+        mortar = np.clip(
+            (img - (brick_l + 0.35 * (mortar_l - brick_l))) / (0.4 * (mortar_l - brick_l)), 0.0, 1.0
+        )
         img = np.dstack([img, mortar]).astype(np.float32)
     if box > 1:
         img = cv2.blur(img, (box, box), borderType=cv2.BORDER_REFLECT)
@@ -275,7 +277,9 @@ def _brick_levels() -> tuple[float, float]:
 
 
 def _texel_yx(texel: float | tuple[float, float]) -> tuple[float, float]:
-    return (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
+    return (
+        (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
+    )
 
 
 def _px_per_texel(name: str, texel, rng: np.random.Generator) -> tuple[float, float]:
@@ -290,14 +294,21 @@ def _rng(seed: int, name: str) -> np.random.Generator:
 
 
 def _sample(src: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return cv2.remap(src, u.astype(np.float32, copy=False), v.astype(np.float32, copy=False),
-                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    return cv2.remap(
+        src,
+        u.astype(np.float32, copy=False),
+        v.astype(np.float32, copy=False),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REFLECT,
+    )
 
 
 _BOND_CANDIDATES = 6  # random horizontal shifts tried per course
 
 
-def _head_joints_x(heads: np.ndarray, offsets: np.ndarray, span: float, flip: float = 1.0) -> np.ndarray:
+def _head_joints_x(
+    heads: np.ndarray, offsets: np.ndarray, span: float, flip: float = 1.0
+) -> np.ndarray:
     """Output positions (photo px from the wall's left edge) of a course's head joints.
 
     The course is read at ``heads[0] + (flip * x + offset) mod period``. One sorted row
@@ -306,7 +317,9 @@ def _head_joints_x(heads: np.ndarray, offsets: np.ndarray, span: float, flip: fl
     period = heads[-1] - heads[0]
     base = np.mod(flip * (heads[None, :-1] - heads[0] - offsets[:, None]), period)
     n = int(np.ceil(span / period)) + 1
-    return np.sort((base[:, None, :] + period * np.arange(n)[None, :, None]).reshape(len(offsets), -1), axis=1)
+    return np.sort(
+        (base[:, None, :] + period * np.arange(n)[None, :, None]).reshape(len(offsets), -1), axis=1
+    )
 
 
 def _joint_gap(below: np.ndarray, joints: np.ndarray) -> np.ndarray:
@@ -317,8 +330,9 @@ def _joint_gap(below: np.ndarray, joints: np.ndarray) -> np.ndarray:
     return np.minimum(d, 0.25 * BRICK_MODULE_PX).mean(1)
 
 
-def brick_luminance(seed: int, h: int, w: int, texel: float | tuple[float, float]
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def brick_luminance(
+    seed: int, h: int, w: int, texel: float | tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
     """A brick wall ``h`` x ``w`` texels cut from the photo, course by course.
 
     Args:
@@ -365,9 +379,13 @@ def brick_luminance(seed: int, h: int, w: int, texel: float | tuple[float, float
     c_row = course_a[idx]
     v = bed[c_row] + (t - starts_a[idx])  # photo row of each output row
     x = (np.arange(w) + 0.5) * kx
-    u = first[c_row][:, None] + np.mod(flip * x[None, :] + offset_a[idx][:, None], period[c_row][:, None])
+    u = first[c_row][:, None] + np.mod(
+        flip * x[None, :] + offset_a[idx][:, None], period[c_row][:, None]
+    )
     # Photo px -> samples of the prefiltered photo (pixel centres at (i + 0.5) / f - 0.5).
-    out = _sample(src, (u + 0.5) * f - 0.5, np.broadcast_to(((v + 0.5) * f - 0.5)[:, None], u.shape))
+    out = _sample(
+        src, (u + 0.5) * f - 0.5, np.broadcast_to(((v + 0.5) * f - 0.5)[:, None], u.shape)
+    )
     return out[..., 0], np.clip(out[..., 1], 0.0, 1.0)
 
 
@@ -396,8 +414,8 @@ def _dihedral_atlas(name: str, box: int) -> tuple[np.ndarray, float, int]:
     """The prefiltered photo in its 8 rotations/flips side by side, and its ``f``.
 
     Each panel is the photo with a mirrored margin of ``pad`` samples, which the tail of
-    a block centred near the photo's edge reaches into. Returns ``(atlas, f, pad)``; panel ``k`` spans
-    columns ``k (size + 2 pad)`` onwards.
+    a block centred near the photo's edge reaches into. Returns ``(atlas, f, pad)``;
+    panel ``k`` spans columns ``k (size + 2 pad)`` onwards.
     """
     img, f = _prefiltered(name, box)
     pad = int(np.ceil(_PAD * img.shape[0]))
@@ -415,9 +433,10 @@ def _quilt(name: str, seed: int, h: int, w: int, texel) -> np.ndarray:
 
     Blocks sit on a lattice of spacing S texels and span 2 S (2/3 of the photo, half
     overlap); each takes a random piece of the photo (centred in its middle half; the
-    tail of a block may reach a mirrored margin) in one of its 8 rotations/flips, weighted by a tent around its centre;
-    the blend is normalised by the root of the summed squared weights, so overlaps keep
-    the photo's contrast instead of averaging it away.
+    tail of a block may reach a mirrored margin) in one of its 8 rotations/flips,
+    weighted by a tent around its centre; the blend is normalised by the root of the
+    summed squared weights, so overlaps keep the photo's contrast instead of averaging it
+    away.
     """
     rng = _rng(seed, name)
     ky, kx = _px_per_texel(name, texel, rng)

@@ -53,7 +53,9 @@ def pad16(n: float) -> int:
     return max(16, int(round(n / 16.0)) * 16)
 
 
-def value_noise(shape: tuple[int, int], rng: np.random.Generator, cell: float, octaves: int = 4) -> np.ndarray:
+def value_noise(
+    shape: tuple[int, int], rng: np.random.Generator, cell: float, octaves: int = 4
+) -> np.ndarray:
     """Fractal value noise in [0, 1], smooth at scale ``cell`` texels.
 
     Args:
@@ -104,22 +106,50 @@ def mip_pyramid(tex: np.ndarray, levels: int = 5) -> list[np.ndarray]:
 
 
 _BRICK_COLOURS = np.array(
-    [[0.55, 0.25, 0.18], [0.62, 0.33, 0.22], [0.45, 0.22, 0.17], [0.70, 0.50, 0.38], [0.50, 0.35, 0.30]], np.float32
+    [
+        [0.55, 0.25, 0.18],
+        [0.62, 0.33, 0.22],
+        [0.45, 0.22, 0.17],
+        [0.70, 0.50, 0.38],
+        [0.50, 0.35, 0.30],
+    ],
+    np.float32,
 )
 _PLASTER_COLOURS = np.array(
-    [[0.85, 0.80, 0.68], [0.78, 0.72, 0.62], [0.70, 0.74, 0.76], [0.88, 0.78, 0.60], [0.75, 0.62, 0.55],
-     [0.66, 0.66, 0.62], [0.82, 0.84, 0.80]], np.float32
+    [
+        [0.85, 0.80, 0.68],
+        [0.78, 0.72, 0.62],
+        [0.70, 0.74, 0.76],
+        [0.88, 0.78, 0.60],
+        [0.75, 0.62, 0.55],
+        [0.66, 0.66, 0.62],
+        [0.82, 0.84, 0.80],
+    ],
+    np.float32,
 )
 _SIDING_COLOURS = np.array(
-    [[0.90, 0.90, 0.86], [0.62, 0.70, 0.78], [0.86, 0.80, 0.55], [0.60, 0.68, 0.58], [0.78, 0.72, 0.66]], np.float32
+    [
+        [0.90, 0.90, 0.86],
+        [0.62, 0.70, 0.78],
+        [0.86, 0.80, 0.55],
+        [0.60, 0.68, 0.58],
+        [0.78, 0.72, 0.66],
+    ],
+    np.float32,
 )
 
 
 _MORTAR = np.float32([0.72, 0.70, 0.66])
 
 
-def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float | tuple[float, float],
-          photo_seed: int | None = None) -> np.ndarray:
+def _wall(
+    style: str,
+    h: int,
+    w: int,
+    rng: np.random.Generator,
+    texel: float | tuple[float, float],
+    photo_seed: int | None = None,
+) -> np.ndarray:
     """Wall albedo (H, W, 3) float32 for a style: brick, plaster, siding or concrete.
 
     ``texel`` is metres per texel, or (along rows, along columns). Brick is the brick
@@ -128,7 +158,9 @@ def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float | t
     brick by brick. Either way ``rng`` is drawn from exactly as before, so everything a
     caller draws after the wall (windows, doors, signs, snow) stays where it was.
     """
-    texel_yx = (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
+    texel_yx = (
+        (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
+    )
     ppm = 1.0 / texel_yx[1]
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     grain = value_noise((h, w), rng, cell=6, octaves=3)[..., None]
@@ -165,7 +197,9 @@ def _wall(style: str, h: int, w: int, rng: np.random.Generator, texel: float | t
         base = _PLASTER_COLOURS[rng.integers(len(_PLASTER_COLOURS))]
         rgb = base * (0.88 + 0.24 * grain)
     # Weathering: large blotches and vertical rain streaks.
-    streak = cv2.resize(rng.random((1, max(2, w // 6)), dtype=np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    streak = cv2.resize(
+        rng.random((1, max(2, w // 6)), dtype=np.float32), (w, h), interpolation=cv2.INTER_LINEAR
+    )
     rgb = rgb * (0.85 + 0.25 * stain) * (0.93 + 0.1 * streak[..., None])
     return rgb.astype(np.float32)
 
@@ -178,8 +212,17 @@ def _rand_colour(rng: np.random.Generator, sat: float = 0.6) -> np.ndarray:
     return (v * (1 - sat + sat * c)).astype(np.float32)
 
 
-def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int, wid: int,
-            rng: np.random.Generator, frame_col: np.ndarray) -> None:
+def _window(
+    rgb: np.ndarray,
+    aux: np.ndarray,
+    x0: int,
+    y0: int,
+    ww: int,
+    wh: int,
+    wid: int,
+    rng: np.random.Generator,
+    frame_col: np.ndarray,
+) -> None:
     """Paints one window with its own clutter in place; marks its glass in ``aux`` with ``wid``."""
     h, w = rgb.shape[:2]
     x1, y1 = min(w, x0 + ww), min(h, y0 + wh)
@@ -191,7 +234,9 @@ def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int
     gh, gw_ = gy1 - gy0, gx1 - gx0
     # Glass: dark interior with a reflected-sky gradient, different for each window.
     tint = np.float32([0.10, 0.12, 0.15]) + rng.uniform(0, 0.08, 3).astype(np.float32)
-    grad = np.linspace(rng.uniform(0.3, 1.4), rng.uniform(0.3, 1.0), gh, dtype=np.float32)[:, None, None]
+    grad = np.linspace(rng.uniform(0.3, 1.4), rng.uniform(0.3, 1.0), gh, dtype=np.float32)[
+        :, None, None
+    ]
     glass = tint * grad * np.ones((gh, gw_, 1), np.float32)
     kind = rng.choice(["curtains", "blinds", "objects", "dark", "curtains", "plants"])
     if kind == "curtains":
@@ -201,7 +246,9 @@ def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int
         glass[:, :cw] = col * (0.8 + 0.2 * np.sin(np.arange(cw) * freq))[None, :, None]
         if rng.random() < 0.7:
             cw2 = max(1, int(gw_ * rng.uniform(0.15, 0.45)))
-            glass[:, gw_ - cw2:] = col * 0.95 * (0.8 + 0.2 * np.sin(np.arange(cw2) * freq))[None, :, None]
+            glass[:, gw_ - cw2 :] = (
+                col * 0.95 * (0.8 + 0.2 * np.sin(np.arange(cw2) * freq))[None, :, None]
+            )
     elif kind == "blinds":
         down = int(gh * rng.uniform(0.2, 1.0))
         col = np.float32([0.85, 0.83, 0.78]) * rng.uniform(0.6, 1.0)
@@ -209,14 +256,29 @@ def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int
         glass[:down] = col * slat
     elif kind in ("objects", "plants"):
         for _ in range(rng.integers(1, 5)):
-            ox, oy = rng.integers(0, max(1, gw_ - 4)), rng.integers(gh // 3, max(gh // 3 + 1, gh - 4))
+            ox, oy = (
+                rng.integers(0, max(1, gw_ - 4)),
+                rng.integers(gh // 3, max(gh // 3 + 1, gh - 4)),
+            )
             ow, oh = rng.integers(3, max(4, gw_ // 3)), rng.integers(3, max(4, gh // 3))
-            col = _rand_colour(rng, 0.7) if kind == "objects" else np.float32([0.1, 0.35, 0.1]) * rng.uniform(0.6, 1.3)
+            col = (
+                _rand_colour(rng, 0.7)
+                if kind == "objects"
+                else np.float32([0.1, 0.35, 0.1]) * rng.uniform(0.6, 1.3)
+            )
             if kind == "plants":
-                cv2.ellipse(glass, (int(ox + ow // 2), int(oy)), (int(ow // 2 + 1), int(oh // 2 + 1)), 0, 0, 360,
-                            col.tolist(), -1)
+                cv2.ellipse(
+                    glass,
+                    (int(ox + ow // 2), int(oy)),
+                    (int(ow // 2 + 1), int(oh // 2 + 1)),
+                    0,
+                    0,
+                    360,
+                    col.tolist(),
+                    -1,
+                )
             else:
-                glass[oy:oy + oh, ox:ox + ow] = col
+                glass[oy : oy + oh, ox : ox + ow] = col
     rgb[gy0:gy1, gx0:gx1] = glass
     # aux = 128 + a lighting rank: a window is lit at night when its rank beats the hour's
     # threshold. Interpolated texels between glass (>= 128) and wall (0) never exceed the
@@ -227,16 +289,18 @@ def _window(rgb: np.ndarray, aux: np.ndarray, x0: int, y0: int, ww: int, wh: int
     bw = max(1, fw // 2)
     if m >= 1:
         cx = (gx0 + gx1) // 2
-        rgb[gy0:gy1, cx - bw:cx + bw] = frame_col
+        rgb[gy0:gy1, cx - bw : cx + bw] = frame_col
     if m == 2:
         cy = gy0 + int(gh * rng.uniform(0.3, 0.6))
-        rgb[cy - bw:cy + bw, gx0:gx1] = frame_col
+        rgb[cy - bw : cy + bw, gx0:gx1] = frame_col
     # Sill and lintel.
-    rgb[y1:min(h, y1 + max(2, fw)), max(0, x0 - fw):min(w, x1 + fw)] = frame_col * 0.85
-    rgb[max(0, y0 - fw):y0, max(0, x0 - fw):min(w, x1 + fw)] = frame_col * 0.7
+    rgb[y1 : min(h, y1 + max(2, fw)), max(0, x0 - fw) : min(w, x1 + fw)] = frame_col * 0.85
+    rgb[max(0, y0 - fw) : y0, max(0, x0 - fw) : min(w, x1 + fw)] = frame_col * 0.7
 
 
-def _put_text(img: np.ndarray, text: str, org, font: int, scale: float, colour: np.ndarray, thick: int) -> None:
+def _put_text(
+    img: np.ndarray, text: str, org, font: int, scale: float, colour: np.ndarray, thick: int
+) -> None:
     """``cv2.putText`` on a float [0, 1] image (OpenCV 5 draws text on 8-bit images only)."""
     canvas = np.zeros(img.shape[:2], np.uint8)
     cv2.putText(canvas, text, org, font, scale, 255, thick, cv2.LINE_AA)
@@ -251,8 +315,16 @@ def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     img = np.ones((h, w, 3), np.float32) * bg
     n = int(rng.integers(3, 10))
     text = "".join(rng.choice(list(_LETTERS), n))
-    font = int(rng.choice([cv2.FONT_HERSHEY_SIMPLEX, cv2.FONT_HERSHEY_DUPLEX, cv2.FONT_HERSHEY_TRIPLEX,
-                           cv2.FONT_HERSHEY_COMPLEX]))
+    font = int(
+        rng.choice(
+            [
+                cv2.FONT_HERSHEY_SIMPLEX,
+                cv2.FONT_HERSHEY_DUPLEX,
+                cv2.FONT_HERSHEY_TRIPLEX,
+                cv2.FONT_HERSHEY_COMPLEX,
+            ]
+        )
+    )
     (tw, th), _ = cv2.getTextSize(text, font, 1.0, 2)
     scale = min(0.9 * w / max(tw, 1), 0.7 * h / max(th, 1))
     thick = max(1, int(scale * 2))
@@ -261,9 +333,17 @@ def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     return img
 
 
-def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, style: str,
-                   shopfront: bool, texel: float = TEXEL_M, snow: int = 0,
-                   snow_pattern: int = 0) -> np.ndarray:
+def facade_texture(
+    seed: int,
+    width_m: float,
+    height_m: float,
+    floor_h: float,
+    style: str,
+    shopfront: bool,
+    texel: float = TEXEL_M,
+    snow: int = 0,
+    snow_pattern: int = 0,
+) -> np.ndarray:
     """Street-facing facade of one building.
 
     Args:
@@ -288,7 +368,9 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
     ppm = W / width_m
     rgb = _wall(style, H, W, rng, (height_m / H, 1.0 / ppm), photo_seed=seed)
     aux = np.zeros((H, W), np.uint8)
-    frame_col = (np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else _rand_colour(rng, 0.3) * 0.7)
+    frame_col = (
+        np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else _rand_colour(rng, 0.3) * 0.7
+    )
     n_floors = max(1, int(height_m / floor_h))
     win_w = rng.uniform(0.8, 1.4)
     win_h = rng.uniform(1.2, 1.7) if style != "siding" else rng.uniform(1.0, 1.4)
@@ -306,25 +388,36 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
         door_w = int(1.0 * ppm)
         door_x = int(rng.uniform(0.3, max(0.31, width_m - 1.4)) * ppm)
         sh_top = y_top + int(0.9 * ppm)
-        for (a, b) in ((sx0, door_x), (door_x + door_w, sx1)):
+        for a, b in ((sx0, door_x), (door_x + door_w, sx1)):
             if b - a > 20:
-                _window(rgb, aux, a, sh_top, b - a, H - int(0.4 * ppm) - sh_top, wid % 255 + 1, rng,
-                        np.float32([0.15, 0.15, 0.16]))
+                _window(
+                    rgb,
+                    aux,
+                    a,
+                    sh_top,
+                    b - a,
+                    H - int(0.4 * ppm) - sh_top,
+                    wid % 255 + 1,
+                    rng,
+                    np.float32([0.15, 0.15, 0.16]),
+                )
                 wid += 1
         door_col = _rand_colour(rng, 0.4) * 0.6
-        rgb[sh_top:H, door_x:door_x + door_w] = door_col
-        rgb[sh_top + 8:H - 40, door_x + 8:door_x + door_w - 8] *= 0.6
+        rgb[sh_top:H, door_x : door_x + door_w] = door_col
+        rgb[sh_top + 8 : H - 40, door_x + 8 : door_x + door_w - 8] *= 0.6
         sign_h = int(0.6 * ppm)
         sign_w = int(rng.uniform(0.5, 0.9) * (sx1 - sx0))
         sx = sx0 + int(rng.uniform(0, 1) * (sx1 - sx0 - sign_w))
-        rgb[y_top + int(0.15 * ppm):y_top + int(0.15 * ppm) + sign_h, sx:sx + sign_w] = sign_texture(rng, sign_w, sign_h)
+        rgb[y_top + int(0.15 * ppm) : y_top + int(0.15 * ppm) + sign_h, sx : sx + sign_w] = (
+            sign_texture(rng, sign_w, sign_h)
+        )
         ledges.append((sx, sx + sign_w, y_top + int(0.15 * ppm)))
     else:
         door_w, door_h = int(1.0 * ppm), int(2.2 * ppm)
         dx = int(rng.uniform(0.4, max(0.41, width_m - 1.5)) * ppm)
-        rgb[H - door_h:H, dx:dx + door_w] = _rand_colour(rng, 0.5) * 0.7
-        rgb[H - door_h + 10:H - 10, dx + 8:dx + door_w - 8] *= 0.75
-        rgb[H - door_h - 6:H - door_h, dx - 6:dx + door_w + 6] = frame_col * 0.8
+        rgb[H - door_h : H, dx : dx + door_w] = _rand_colour(rng, 0.5) * 0.7
+        rgb[H - door_h + 10 : H - 10, dx + 8 : dx + door_w - 8] *= 0.75
+        rgb[H - door_h - 6 : H - door_h, dx - 6 : dx + door_w + 6] = frame_col * 0.8
         cv2.circle(rgb, (dx + door_w - 12, H - door_h // 2), 3, (0.8, 0.7, 0.3), -1)
     for f in range(start_floor, n_floors):
         y_floor_bottom = H - int(f * floor_h * ppm)
@@ -332,10 +425,24 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
         if y0 < int(0.3 * ppm):
             break
         for c in range(n_cols):
-            if f == 0 and not shopfront and abs((margin + c * bay + bay / 2) * ppm - (dx + door_w / 2)) < bay * ppm * 0.6:
+            if (
+                f == 0
+                and not shopfront
+                and abs((margin + c * bay + bay / 2) * ppm - (dx + door_w / 2)) < bay * ppm * 0.6
+            ):
                 continue
             x0 = int((margin + c * bay + (bay - win_w) / 2) * ppm)
-            _window(rgb, aux, x0, y0, int(win_w * ppm), int(win_h * ppm), (wid - 1) % 255 + 1, rng, frame_col)
+            _window(
+                rgb,
+                aux,
+                x0,
+                y0,
+                int(win_w * ppm),
+                int(win_h * ppm),
+                (wid - 1) % 255 + 1,
+                rng,
+                frame_col,
+            )
             fw = max(2, int(0.05 * int(win_w * ppm)))
             x1 = x0 + int(win_w * ppm)
             ledges += [(x0 - fw, x1 + fw, y0 + int(win_h * ppm)), (x0 - fw, x1 + fw, y0 - fw)]
@@ -343,26 +450,30 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
             if rng.random() < 0.06:  # an air conditioner under some windows
                 ax0, ay0 = x0 + int(0.1 * ppm), y0 + int(win_h * ppm) + 6
                 ledges.append((ax0, ax0 + int(0.6 * ppm), ay0))
-                rgb[ay0:ay0 + int(0.4 * ppm), ax0:ax0 + int(0.6 * ppm)] = np.float32([0.75, 0.75, 0.72])
-                rgb[ay0 + 4:ay0 + int(0.4 * ppm) - 4:3, ax0 + 4:ax0 + int(0.6 * ppm) - 4] *= 0.6
+                rgb[ay0 : ay0 + int(0.4 * ppm), ax0 : ax0 + int(0.6 * ppm)] = np.float32(
+                    [0.75, 0.75, 0.72]
+                )
+                rgb[ay0 + 4 : ay0 + int(0.4 * ppm) - 4 : 3, ax0 + 4 : ax0 + int(0.6 * ppm) - 4] *= (
+                    0.6
+                )
         if f > start_floor and rng.random() < 0.5:  # string course between floors
             yb = y_floor_bottom - 4
-            rgb[yb:yb + 6] = rgb[yb:yb + 6] * 0.7 + frame_col * 0.3
+            rgb[yb : yb + 6] = rgb[yb : yb + 6] * 0.7 + frame_col * 0.3
             ledges.append((0, W, yb))
     # Cornice at the top and a drain pipe.
     ch = int(rng.uniform(0.2, 0.6) * ppm)
     rgb[:ch] = rgb[:ch] * 0.5 + frame_col * 0.4
-    rgb[ch:ch + 3] *= 0.55
+    rgb[ch : ch + 3] *= 0.55
     ledges.append((0, W, ch))
     if rng.random() < 0.6:
         px = int(rng.choice([0.15, width_m - 0.25]) * ppm)
-        rgb[:, px:px + 4] = np.float32([0.35, 0.36, 0.36])
+        rgb[:, px : px + 4] = np.float32([0.35, 0.36, 0.36])
     if rng.random() < 0.35:  # graffiti-ish tag or posters near the ground
         for _ in range(rng.integers(1, 4)):
             pw, ph = int(rng.uniform(0.4, 0.8) * ppm), int(rng.uniform(0.5, 1.0) * ppm)
             px, py = int(rng.uniform(0, width_m - 0.8) * ppm), H - int(rng.uniform(1.0, 2.2) * ppm)
-            if py + ph < H and px + pw < W and aux[py:py + ph, px:px + pw].max() == 0:
-                rgb[py:py + ph, px:px + pw] = sign_texture(rng, pw, ph)
+            if py + ph < H and px + pw < W and aux[py : py + ph, px : px + pw].max() == 0:
+                rgb[py : py + ph, px : px + pw] = sign_texture(rng, pw, ph)
     rgb = _ledge_snow(rgb, ledges, snow, seed, snow_pattern, texel)
     return _finish(rgb, aux, blur=0.7)
 
@@ -371,7 +482,9 @@ def facade_texture(seed: int, width_m: float, height_m: float, floor_h: float, s
 LEDGE_SNOW = {1: (0.03, 0.35), 2: (0.05, 0.6), 3: (0.08, 0.85), 4: (0.12, 1.0)}
 
 
-def _ledge_snow(rgb: np.ndarray, ledges, snow: int, seed: int, pattern: int, texel: float) -> np.ndarray:
+def _ledge_snow(
+    rgb: np.ndarray, ledges, snow: int, seed: int, pattern: int, texel: float
+) -> np.ndarray:
     """Snow lying on a facade's horizontal ledges (Sec. IV-A-1: winter changes buildings too).
 
     Vertical walls hold no snow, but sills, lintels, string courses, cornices and sign tops
@@ -398,7 +511,11 @@ def _ledge_snow(rgb: np.ndarray, ledges, snow: int, seed: int, pattern: int, tex
         if cols.size:
             # A rounded drift: deepest mid-ledge, thinning towards the ends.
             t = (cols - x0) / max(1, x1 - x0 - 1)
-            top = y1 - 1 - np.round((y1 - y0 - 1) * np.sqrt(np.clip(4 * t * (1 - t), 0, 1))).astype(int)
+            top = (
+                y1
+                - 1
+                - np.round((y1 - y0 - 1) * np.sqrt(np.clip(4 * t * (1 - t), 0, 1))).astype(int)
+            )
             rows = np.arange(y0, y1)[:, None]
             mask = rows >= top[None, :]
             region = out[y0:y1, cols]
@@ -407,8 +524,9 @@ def _ledge_snow(rgb: np.ndarray, ledges, snow: int, seed: int, pattern: int, tex
     return out
 
 
-def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, texel: float = 0.04,
-                      snow: int = 0) -> np.ndarray:
+def side_wall_texture(
+    seed: int, width_m: float, height_m: float, style: str, texel: float = 0.04, snow: int = 0
+) -> np.ndarray:
     """A side (party) wall: the building's material with few, sparse windows."""
     del snow
     rng = np.random.default_rng(seed)
@@ -419,12 +537,28 @@ def side_wall_texture(seed: int, width_m: float, height_m: float, style: str, te
     for k in range(int(rng.integers(0, 4))):
         x0 = int(rng.uniform(0.5, max(0.6, width_m - 1.5)) * ppm)
         y0 = int(rng.uniform(0.5, max(0.6, height_m - 2.5)) * ppm)
-        _window(rgb, aux, x0, y0, int(0.8 * ppm), int(1.2 * ppm), 200 + k, rng, np.float32([0.8, 0.8, 0.78]))
+        _window(
+            rgb,
+            aux,
+            x0,
+            y0,
+            int(0.8 * ppm),
+            int(1.2 * ppm),
+            200 + k,
+            rng,
+            np.float32([0.8, 0.8, 0.78]),
+        )
     return _finish(rgb, aux, blur=0.7)
 
 
-def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel: float = 0.08,
-                 snow_pattern: int = 0) -> np.ndarray:
+def roof_texture(
+    seed: int,
+    width_m: float,
+    depth_m: float,
+    snow: int = 0,
+    texel: float = 0.08,
+    snow_pattern: int = 0,
+) -> np.ndarray:
     """Flat roof (tar/gravel); aux = snow susceptibility (high everywhere).
 
     With the photos, the roof is gravel-ballasted (the gravel photograph: 20 mm stones,
@@ -434,7 +568,9 @@ def roof_texture(seed: int, width_m: float, depth_m: float, snow: int = 0, texel
     W, H = pad16(width_m / texel), pad16(depth_m / texel)
     g = value_noise((H, W), rng, cell=8, octaves=3)[..., None]
     if pt.available():
-        rgb = pt.gravel_tile(seed, H, W, (depth_m / H, width_m / W), [0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
+        rgb = pt.gravel_tile(seed, H, W, (depth_m / H, width_m / W), [0.33, 0.32, 0.31]) * (
+            0.8 + 0.4 * g
+        )
     else:
         rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
     aux = (200 + 55 * value_noise((H, W), rng, cell=10, octaves=2)).astype(np.uint8)
@@ -456,13 +592,26 @@ def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, seed: int, pattern:
     thr = {1: 215, 2: 170, 3: 110, 4: 45}[int(min(snow, 4))]
     patch = value_noise((h, w), rng, cell=24, octaves=3)
     cover = np.clip((aux.astype(np.float32) + 90 * (patch - 0.5) - thr) / 25.0, 0.0, 1.0)[..., None]
-    snow_col = np.float32([0.93, 0.94, 0.97]) * (0.92 + 0.08 * value_noise((h, w), rng, cell=5, octaves=2))[..., None]
+    snow_col = (
+        np.float32([0.93, 0.94, 0.97])
+        * (0.92 + 0.08 * value_noise((h, w), rng, cell=5, octaves=2))[..., None]
+    )
     return rgb * (1 - cover) + snow_col * cover
 
 
-def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lanes: int = 2,
-                   season: int = 1, snow: int = 0, crosswalk: bool = False, texel: float = TEXEL_M,
-                   snow_pattern: int = 0) -> np.ndarray:
+def ground_texture(
+    seed: int,
+    kind: str,
+    length_m: float,
+    width_m: float,
+    *,
+    lanes: int = 2,
+    season: int = 1,
+    snow: int = 0,
+    crosswalk: bool = False,
+    texel: float = TEXEL_M,
+    snow_pattern: int = 0,
+) -> np.ndarray:
     """A ground tile: rows run along world -y (north at the top), columns along +x (east).
 
     Args:
@@ -499,20 +648,33 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         rgb = base * (0.75 + 0.35 * fine + 0.4 * speck) * (0.85 + 0.3 * blot)
         # Snow lies first along the curbs, where the plough piles it.
         curb = np.clip(1.0 - np.minimum(yy, H - 1 - yy) / (1.2 * ppm), 0.0, 1.0)
-        aux = (10 + 40 * blot[..., 0] + 130 * curb ** 1.5).astype(np.uint8)
+        aux = (10 + 40 * blot[..., 0] + 130 * curb**1.5).astype(np.uint8)
         # Patches and cracks.
         for _ in range(rng.integers(0, 4)):
             pw, ph = int(rng.uniform(0.5, 3) * ppm), int(rng.uniform(0.5, 2) * ppm)
             px, py = rng.integers(0, W - pw), rng.integers(0, H - ph)
-            rgb[py:py + ph, px:px + pw] *= rng.uniform(0.7, 1.2)
+            rgb[py : py + ph, px : px + pw] *= rng.uniform(0.7, 1.2)
         for _ in range(rng.integers(2, 8)):
-            pts = np.cumsum(rng.normal(0, 0.25 * ppm, (rng.integers(3, 9), 2)), axis=0) + [rng.integers(0, W), rng.integers(0, H)]
+            pts = np.cumsum(rng.normal(0, 0.25 * ppm, (rng.integers(3, 9), 2)), axis=0) + [
+                rng.integers(0, W),
+                rng.integers(0, H),
+            ]
             cv2.polylines(rgb, [pts.astype(np.int32)], False, (0.12, 0.12, 0.12), 2, cv2.LINE_AA)
         if rng.random() < 0.4:  # manhole cover
-            cx, cy, r = rng.integers(int(ppm), W - int(ppm)), rng.integers(int(ppm), H - int(ppm)), int(0.35 * ppm)
+            cx, cy, r = (
+                rng.integers(int(ppm), W - int(ppm)),
+                rng.integers(int(ppm), H - int(ppm)),
+                int(0.35 * ppm),
+            )
             cv2.circle(rgb, (int(cx), int(cy)), r, (0.22, 0.21, 0.2), -1, cv2.LINE_AA)
             for k in range(-r, r, 6):
-                cv2.line(rgb, (int(cx - r), int(cy + k)), (int(cx + r), int(cy + k)), (0.3, 0.29, 0.28), 1)
+                cv2.line(
+                    rgb,
+                    (int(cx - r), int(cy + k)),
+                    (int(cx + r), int(cy + k)),
+                    (0.3, 0.29, 0.28),
+                    1,
+                )
             cv2.circle(rgb, (int(cx), int(cy)), r, (0.15, 0.15, 0.15), 2, cv2.LINE_AA)
         lane_w = H / lanes
         paint_w = max(3, int(0.12 * ppm))
@@ -525,20 +687,22 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
             yc = int(k * lane_w)
             if lanes == 2:  # double yellow centre line
                 for off in (-paint_w, paint_w):
-                    paint[yc + off - paint_w // 2:yc + off + paint_w // 2 + 1] = 1
-                    col[yc + off - paint_w // 2:yc + off + paint_w // 2 + 1] = yellow
+                    paint[yc + off - paint_w // 2 : yc + off + paint_w // 2 + 1] = 1
+                    col[yc + off - paint_w // 2 : yc + off + paint_w // 2 + 1] = yellow
             else:
                 dash = ((xx[0] % (6 * ppm)) < 3 * ppm).astype(np.float32)
-                paint[yc - paint_w // 2:yc + paint_w // 2 + 1] = dash
-                col[yc - paint_w // 2:yc + paint_w // 2 + 1] = white
+                paint[yc - paint_w // 2 : yc + paint_w // 2 + 1] = dash
+                col[yc - paint_w // 2 : yc + paint_w // 2 + 1] = white
         for yc in (int(0.3 * ppm), H - int(0.3 * ppm)):  # edge lines
-            paint[yc - paint_w // 2:yc + paint_w // 2 + 1] = 1
-            col[yc - paint_w // 2:yc + paint_w // 2 + 1] = white
+            paint[yc - paint_w // 2 : yc + paint_w // 2 + 1] = 1
+            col[yc - paint_w // 2 : yc + paint_w // 2 + 1] = white
         if crosswalk:
             x0 = int(rng.uniform(0.2, 0.5) * W)
             stripe = ((yy[:, 0] % (1.0 * ppm)) < 0.5 * ppm).astype(np.float32)
-            paint[:, x0:x0 + int(3 * ppm)] = np.maximum(paint[:, x0:x0 + int(3 * ppm)], stripe[:, None])
-            col[:, x0:x0 + int(3 * ppm)] = white
+            paint[:, x0 : x0 + int(3 * ppm)] = np.maximum(
+                paint[:, x0 : x0 + int(3 * ppm)], stripe[:, None]
+            )
+            col[:, x0 : x0 + int(3 * ppm)] = white
         p = (paint * wear[..., 0])[..., None]
         rgb = rgb * (1 - p) + col * p * (0.9 + 0.1 * fine)
     elif kind == "sidewalk":
@@ -548,16 +712,34 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         sid = np.floor(xx / slab) * 7 + np.floor(yy / slab)
         hsh = np.sin(sid * 12.9898 + seed % 97) * 43758.5453
         hsh = (hsh - np.floor(hsh))[..., None]
-        rgb = base * (0.85 + 0.15 * hsh) * (0.85 + 0.25 * fine) * (0.85 + 0.25 * blot) * np.where(joint, 0.7, 1.0)[..., None]
+        rgb = (
+            base
+            * (0.85 + 0.15 * hsh)
+            * (0.85 + 0.25 * fine)
+            * (0.85 + 0.25 * blot)
+            * np.where(joint, 0.7, 1.0)[..., None]
+        )
         aux = (90 + 90 * blot[..., 0]).astype(np.uint8)
         curb = int(0.2 * ppm)  # curb on the road side: the tile's top rows (north) by convention
         rgb[:curb] = np.float32([0.75, 0.74, 0.71]) * (0.9 + 0.1 * fine[:curb])
-        rgb[curb:curb + 2] *= 0.6
+        rgb[curb : curb + 2] *= 0.6
         for _ in range(rng.integers(0, 5)):  # stains, gum
             cx, cy = rng.integers(0, W), rng.integers(curb, H)
-            cv2.circle(rgb, (int(cx), int(cy)), int(rng.integers(2, 12)), (0.35, 0.34, 0.33), -1, cv2.LINE_AA)
+            cv2.circle(
+                rgb,
+                (int(cx), int(cy)),
+                int(rng.integers(2, 12)),
+                (0.35, 0.34, 0.33),
+                -1,
+                cv2.LINE_AA,
+            )
     else:  # grass / lawn
-        greens = {0: [0.42, 0.38, 0.26], 1: [0.26, 0.42, 0.16], 2: [0.34, 0.42, 0.18], 3: [0.45, 0.40, 0.20]}
+        greens = {
+            0: [0.42, 0.38, 0.26],
+            1: [0.26, 0.42, 0.16],
+            2: [0.34, 0.42, 0.18],
+            3: [0.45, 0.40, 0.20],
+        }
         base = np.float32(greens[int(season)])
         blade = rng.random((H, W), dtype=np.float32)[..., None]
         photos = pt.available()
@@ -572,13 +754,16 @@ def ground_texture(seed: int, kind: str, length_m: float, width_m: float, *, lan
         if rng.random() < 0.5:  # a path or driveway across the lawn (gravel with the photos)
             px, pw = rng.integers(0, max(1, W - int(3 * ppm))), int(rng.uniform(1.0, 3.0) * ppm)
             if photos:
-                rgb[:, px:px + pw] = pt.gravel_tile(seed, H, pw, texel_yx,
-                                                    np.float32([0.58, 0.56, 0.52]) * 0.975)
+                rgb[:, px : px + pw] = pt.gravel_tile(
+                    seed, H, pw, texel_yx, np.float32([0.58, 0.56, 0.52]) * 0.975
+                )
             else:
-                rgb[:, px:px + pw] = np.float32([0.58, 0.56, 0.52]) * (0.85 + 0.25 * fine[:, px:px + pw])
-            aux[:, px:px + pw] = 90
+                rgb[:, px : px + pw] = np.float32([0.58, 0.56, 0.52]) * (
+                    0.85 + 0.25 * fine[:, px : px + pw]
+                )
+            aux[:, px : px + pw] = 90
         if season == 3:
-            leaves = (rng.random((H, W)) < 0.01)
+            leaves = rng.random((H, W)) < 0.01
             rgb[leaves] = np.float32([0.65, 0.35, 0.1])
     rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
     return _finish(rgb, aux, blur=0.6)
@@ -612,7 +797,14 @@ def tree_structure(seed: int, height_m: float, crown_r_m: float, texel: float = 
         x2, y2 = x + length * np.sin(ang), y - length * np.cos(ang)
         cv2.line(wood, (int(x), int(y)), (int(x2), int(y2)), 1.0, max(1, int(th)), cv2.LINE_AA)
         for _ in range(2 if depth > 1 else 3):
-            branch(x2, y2, ang + rng.normal(0, 0.55), length * rng.uniform(0.55, 0.8), th * 0.65, depth - 1)
+            branch(
+                x2,
+                y2,
+                ang + rng.normal(0, 0.55),
+                length * rng.uniform(0.55, 0.8),
+                th * 0.65,
+                depth - 1,
+            )
 
     crown_h = trunk_top
     for _ in range(int(rng.integers(3, 6))):
@@ -632,10 +824,21 @@ def tree_structure(seed: int, height_m: float, crown_r_m: float, texel: float = 
         rad = int(rng.integers(2, 6))
         rk = int(rng.integers(0, 250))
         cv2.circle(rank, (px, py), rad, rk, -1)
-        cv2.circle(shade, (px, py), rad, float(0.55 + 0.45 * (1 - r) * rng.uniform(0.6, 1.0) + 0.2 * (py < ccy)), -1)
+        cv2.circle(
+            shade,
+            (px, py),
+            rad,
+            float(0.55 + 0.45 * (1 - r) * rng.uniform(0.6, 1.0) + 0.2 * (py < ccy)),
+            -1,
+        )
         cv2.circle(hue, (px, py), rad, float(rng.random()), -1)
-    return {"wood": wood, "leaf_rank": rank, "leaf_shade": shade, "leaf_hue": hue,
-            "bark": np.float32([0.30, 0.25, 0.20]) * rng.uniform(0.7, 1.2)}
+    return {
+        "wood": wood,
+        "leaf_rank": rank,
+        "leaf_shade": shade,
+        "leaf_hue": hue,
+        "bark": np.float32([0.30, 0.25, 0.20]) * rng.uniform(0.7, 1.2),
+    }
 
 
 def tree_texture(structure: dict, density: float, autumn: float, snow: int = 0) -> np.ndarray:
@@ -650,7 +853,12 @@ def tree_texture(structure: dict, density: float, autumn: float, snow: int = 0) 
     Returns:
       RGBA uint8, aux = alpha.
     """
-    wood, rank, shade, hue = structure["wood"], structure["leaf_rank"], structure["leaf_shade"], structure["leaf_hue"]
+    wood, rank, shade, hue = (
+        structure["wood"],
+        structure["leaf_rank"],
+        structure["leaf_shade"],
+        structure["leaf_hue"],
+    )
     leaf = (rank.astype(np.float32) < density * 250.0).astype(np.float32)
     green = np.stack([0.16 + 0.08 * hue, 0.30 + 0.14 * hue, 0.08 + 0.05 * hue], -1)
     fall = np.stack([0.55 + 0.25 * hue, 0.20 + 0.35 * hue, 0.05 + 0.04 * hue], -1)
@@ -669,13 +877,24 @@ def tree_texture(structure: dict, density: float, autumn: float, snow: int = 0) 
 
 
 _CAR_COLOURS = np.array(
-    [[0.85, 0.85, 0.85], [0.08, 0.08, 0.09], [0.45, 0.46, 0.48], [0.60, 0.10, 0.10], [0.10, 0.18, 0.45],
-     [0.75, 0.75, 0.78], [0.20, 0.30, 0.22], [0.80, 0.65, 0.20], [0.35, 0.20, 0.15]], np.float32
+    [
+        [0.85, 0.85, 0.85],
+        [0.08, 0.08, 0.09],
+        [0.45, 0.46, 0.48],
+        [0.60, 0.10, 0.10],
+        [0.10, 0.18, 0.45],
+        [0.75, 0.75, 0.78],
+        [0.20, 0.30, 0.22],
+        [0.80, 0.65, 0.20],
+        [0.35, 0.20, 0.15],
+    ],
+    np.float32,
 )
 
 
-def car_textures(seed: int, length_m: float, width_m: float, body_h: float, cabin_h: float,
-                 texel: float = 0.03) -> dict:
+def car_textures(
+    seed: int, length_m: float, width_m: float, body_h: float, cabin_h: float, texel: float = 0.03
+) -> dict:
     """Textures of one car's box faces: ``side_l``, ``side_r``, ``front``, ``back``, ``top``,
     ``cabin_side_l/r``, ``cabin_front``, ``cabin_back``, ``cabin_top``. Aux = light emission."""
     rng = np.random.default_rng(seed)
@@ -697,38 +916,78 @@ def car_textures(seed: int, length_m: float, width_m: float, body_h: float, cabi
             cv2.circle(rgb, (cx, H), int(0.2 * ppm), (0.55, 0.55, 0.56), -1, cv2.LINE_AA)
         for dx in (0.38, 0.6):
             cv2.line(rgb, (int(dx * W), 0), (int(dx * W), H), (0.05, 0.05, 0.05), 1, cv2.LINE_AA)
-            cv2.line(rgb, (int((dx + 0.12) * W), int(0.25 * H)), (int((dx + 0.17) * W), int(0.25 * H)),
-                     (0.2, 0.2, 0.2), 2)
-        rgb[H - int(0.12 * ppm):] *= 0.35
+            cv2.line(
+                rgb,
+                (int((dx + 0.12) * W), int(0.25 * H)),
+                (int((dx + 0.17) * W), int(0.25 * H)),
+                (0.2, 0.2, 0.2),
+                2,
+            )
+        rgb[H - int(0.12 * ppm) :] *= 0.35
         out[side] = _finish(rgb, aux)
     for end in ("front", "back"):
         rgb, aux, ppm = panel(width_m, body_h)
         H, W = aux.shape
         lc = (0.95, 0.95, 0.85) if end == "front" else (0.7, 0.05, 0.05)
         for lx in (0.12, 0.88):
-            cv2.ellipse(rgb, (int(lx * W), int(0.3 * H)), (int(0.1 * W), int(0.1 * H)), 0, 0, 360, lc, -1, cv2.LINE_AA)
-            cv2.ellipse(aux, (int(lx * W), int(0.3 * H)), (int(0.1 * W), int(0.1 * H)), 0, 0, 360,
-                        255 if end == "front" else 140, -1)
-        rgb[int(0.55 * H):int(0.8 * H), int(0.38 * W):int(0.62 * W)] = (0.9, 0.9, 0.85)  # plate
-        _put_text(rgb, "".join(rng.choice(list(_LETTERS), 5)), (int(0.39 * W), int(0.76 * H)),
-                  cv2.FONT_HERSHEY_SIMPLEX, 0.25 * W / 60, np.float32([0.1, 0.1, 0.2]), 1)
+            cv2.ellipse(
+                rgb,
+                (int(lx * W), int(0.3 * H)),
+                (int(0.1 * W), int(0.1 * H)),
+                0,
+                0,
+                360,
+                lc,
+                -1,
+                cv2.LINE_AA,
+            )
+            cv2.ellipse(
+                aux,
+                (int(lx * W), int(0.3 * H)),
+                (int(0.1 * W), int(0.1 * H)),
+                0,
+                0,
+                360,
+                255 if end == "front" else 140,
+                -1,
+            )
+        rgb[int(0.55 * H) : int(0.8 * H), int(0.38 * W) : int(0.62 * W)] = (0.9, 0.9, 0.85)  # plate
+        _put_text(
+            rgb,
+            "".join(rng.choice(list(_LETTERS), 5)),
+            (int(0.39 * W), int(0.76 * H)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.25 * W / 60,
+            np.float32([0.1, 0.1, 0.2]),
+            1,
+        )
         if end == "front":
-            rgb[int(0.35 * H):int(0.5 * H), int(0.3 * W):int(0.7 * W)] = 0.1
+            rgb[int(0.35 * H) : int(0.5 * H), int(0.3 * W) : int(0.7 * W)] = 0.1
         out[end] = _finish(rgb, aux)
     rgb, aux, _ = panel(length_m, width_m)
     out["top"] = _finish(rgb, aux)
     glass = np.float32([0.12, 0.14, 0.17])
-    for name, (wm, hm) in {"cabin_side_l": (length_m * 0.55, cabin_h), "cabin_side_r": (length_m * 0.55, cabin_h),
-                           "cabin_front": (width_m * 0.9, cabin_h), "cabin_back": (width_m * 0.9, cabin_h)}.items():
+    for name, (wm, hm) in {
+        "cabin_side_l": (length_m * 0.55, cabin_h),
+        "cabin_side_r": (length_m * 0.55, cabin_h),
+        "cabin_front": (width_m * 0.9, cabin_h),
+        "cabin_back": (width_m * 0.9, cabin_h),
+    }.items():
         rgb, aux, ppm = panel(wm, hm)
         H, W = aux.shape
         b = max(2, int(0.06 * ppm))
         sky = np.linspace(0.9, 0.5, H - 2 * b, dtype=np.float32)[:, None, None]
-        rgb[b:H - b, b:W - b] = glass * (1 + sky)
+        rgb[b : H - b, b : W - b] = glass * (1 + sky)
         if name.startswith("cabin_side"):
-            rgb[b:H - b, W // 2 - b:W // 2 + b] = body * 0.5
+            rgb[b : H - b, W // 2 - b : W // 2 + b] = body * 0.5
             if rng.random() < 0.5:  # a head in the car
-                cv2.circle(rgb, (int(W * rng.uniform(0.2, 0.4)), int(H * 0.55)), int(0.1 * ppm), (0.2, 0.15, 0.12), -1)
+                cv2.circle(
+                    rgb,
+                    (int(W * rng.uniform(0.2, 0.4)), int(H * 0.55)),
+                    int(0.1 * ppm),
+                    (0.2, 0.15, 0.12),
+                    -1,
+                )
         out[name] = _finish(rgb, aux)
     rgb, aux, _ = panel(length_m * 0.55, width_m * 0.9)
     out["cabin_top"] = _finish(rgb, aux)
@@ -744,35 +1003,64 @@ def person_texture(seed: int, texel: float = 0.02) -> np.ndarray:
     cx = W // 2
     skin = np.float32([0.85, 0.65, 0.5]) * rng.uniform(0.35, 1.05)
     top = _rand_colour(rng, 0.7)
-    legs = np.float32([0.15, 0.18, 0.3]) * rng.uniform(0.5, 1.5) if rng.random() < 0.6 else _rand_colour(rng, 0.4)
+    legs = (
+        np.float32([0.15, 0.18, 0.3]) * rng.uniform(0.5, 1.5)
+        if rng.random() < 0.6
+        else _rand_colour(rng, 0.4)
+    )
     hr = int(0.11 / 1.75 * H)
     cv2.circle(rgb, (cx, hr + 2), hr, skin.tolist(), -1, cv2.LINE_AA)
     cv2.circle(a, (cx, hr + 2), hr, 255, -1)
     cv2.ellipse(rgb, (cx, hr - 2), (hr, hr // 2 + 2), 0, 180, 360, (0.1, 0.07, 0.05), -1)
     sh = int(0.22 * W)
-    torso = np.array([[cx - sh, 2 * hr + 6], [cx + sh, 2 * hr + 6], [cx + sh - 2, int(0.55 * H)], [cx - sh + 2, int(0.55 * H)]])
+    torso = np.array(
+        [
+            [cx - sh, 2 * hr + 6],
+            [cx + sh, 2 * hr + 6],
+            [cx + sh - 2, int(0.55 * H)],
+            [cx - sh + 2, int(0.55 * H)],
+        ]
+    )
     cv2.fillPoly(rgb, [torso], top.tolist())
     cv2.fillPoly(a, [torso], 255)
     for sgn in (-1, 1):  # arms and legs
-        cv2.line(rgb, (cx + sgn * sh, 2 * hr + 10), (cx + sgn * (sh + 4), int(0.52 * H)), (top * 0.8).tolist(), 7)
+        cv2.line(
+            rgb,
+            (cx + sgn * sh, 2 * hr + 10),
+            (cx + sgn * (sh + 4), int(0.52 * H)),
+            (top * 0.8).tolist(),
+            7,
+        )
         cv2.line(a, (cx + sgn * sh, 2 * hr + 10), (cx + sgn * (sh + 4), int(0.52 * H)), 255, 7)
         lx = cx + sgn * int(rng.uniform(0.04, 0.12) * W)
         cv2.line(rgb, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), legs.tolist(), 9)
         cv2.line(a, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), 255, 9)
         cv2.line(rgb, (lx, H - 4), (lx + 6, H - 4), (0.05, 0.05, 0.05), 5)
     if rng.random() < 0.3:  # a bag
-        cv2.rectangle(rgb, (cx + sh, int(0.45 * H)), (cx + sh + 10, int(0.6 * H)), _rand_colour(rng, 0.5).tolist(), -1)
+        cv2.rectangle(
+            rgb,
+            (cx + sh, int(0.45 * H)),
+            (cx + sh + 10, int(0.6 * H)),
+            _rand_colour(rng, 0.5).tolist(),
+            -1,
+        )
         cv2.rectangle(a, (cx + sh, int(0.45 * H)), (cx + sh + 10, int(0.6 * H)), 255, -1)
     return _finish(rgb, a, blur=0.5)
 
 
-def plain_texture(seed: int, colour: tuple[float, float, float], w: int = 16, h: int = 64,
-                  aux: int = 0, bands: int = 0) -> np.ndarray:
+def plain_texture(
+    seed: int,
+    colour: tuple[float, float, float],
+    w: int = 16,
+    h: int = 64,
+    aux: int = 0,
+    bands: int = 0,
+) -> np.ndarray:
     """Small painted-metal/concrete texture for poles, bins, hydrants, lamp heads."""
     rng = np.random.default_rng(seed)
     g = value_noise((h, w), rng, cell=4, octaves=2)[..., None]
     rgb = np.float32(colour) * (0.85 + 0.3 * g)
     for k in range(bands):
         y = int((k + 1) * h / (bands + 1))
-        rgb[y:y + max(1, h // 32)] *= 0.6
+        rgb[y : y + max(1, h // 32)] *= 0.6
     return _finish(rgb.astype(np.float32), np.full((h, w), aux, np.uint8), blur=0.5)

@@ -16,7 +16,14 @@ BRICK, MORTAR = np.float32([0.55, 0.25, 0.18]), np.float32([0.72, 0.70, 0.66])
 
 
 def _clear_caches():
-    for f in (pt._load_all, pt.brick_layout, pt._brick_levels, pt._prefiltered, pt._dihedral_atlas, pt._quilt):
+    for f in (
+        pt._load_all,
+        pt.brick_layout,
+        pt._brick_levels,
+        pt._prefiltered,
+        pt._dihedral_atlas,
+        pt._quilt,
+    ):
         f.cache_clear()
 
 
@@ -74,7 +81,9 @@ def test_photos_load_offline_from_the_wheel(no_network):
         np.testing.assert_array_equal(getattr(skdata, name)(), shipped)
         img = pt.photo(name)
         assert img.dtype == np.float32 and abs(float(img.mean()) - 1.0) < 1e-4
-    np.testing.assert_allclose(pt.photo("grass"), pt.read_png("grass") / pt.read_png("grass").mean(), rtol=1e-5)
+    np.testing.assert_allclose(
+        pt.photo("grass"), pt.read_png("grass") / pt.read_png("grass").mean(), rtol=1e-5
+    )
     # The brick photo is rectified: its bed joints are horizontal, so the mean of each row
     # swings between brick and mortar much more than the mean of each column.
     b = pt.photo("brick")
@@ -129,8 +138,11 @@ def test_head_joints_are_broken_between_courses(monkeypatch):
         prof = mortar[a:b].mean(0)
         x = np.flatnonzero((prof > 0.5) & (prof >= np.roll(prof, 1)) & (prof > np.roll(prof, -1)))
         joints.append(x * texel)
-    near = [np.mean(np.min(np.abs(upper[:, None] - lower[None, :]), 1) < 0.02)
-            for lower, upper in itertools.pairwise(joints) if len(lower) and len(upper)]
+    near = [
+        np.mean(np.min(np.abs(upper[:, None] - lower[None, :]), 1) < 0.02)
+        for lower, upper in itertools.pairwise(joints)
+        if len(lower) and len(upper)
+    ]
     assert len(near) >= 8
     # Random shifts put 13-25 % of head joints within 2 cm of one below (seeds 3, 4, 5, 11);
     # the chosen ones 0-1.5 %.
@@ -180,13 +192,21 @@ def _glass(tex: np.ndarray) -> np.ndarray:
 @needs_photos
 @pytest.mark.parametrize("shopfront", [True, False])
 def test_facade_windows_signs_and_snow_stay_where_they_were(monkeypatch, shopfront):
-    args = {"seed": 4242, "width_m": 11.0, "height_m": 10.0, "floor_h": 3.2, "style": "brick",
-            "shopfront": shopfront}
+    args = {
+        "seed": 4242,
+        "width_m": 11.0,
+        "height_m": 10.0,
+        "floor_h": 3.2,
+        "style": "brick",
+        "shopfront": shopfront,
+    }
     photo = {s: tx.facade_texture(**args, snow=s, snow_pattern=2) for s in (0, 3)}
     monkeypatch.setattr(pt, "HAVE_SKIMAGE", False)
     drawn = {s: tx.facade_texture(**args, snow=s, snow_pattern=2) for s in (0, 3)}
     for s in (0, 3):
-        np.testing.assert_array_equal(photo[s][..., 3], drawn[s][..., 3])  # window ids / lighting ranks
+        np.testing.assert_array_equal(
+            photo[s][..., 3], drawn[s][..., 3]
+        )  # window ids / lighting ranks
         glass = _glass(photo[s])
         assert glass.sum() > 2000
         np.testing.assert_array_equal(photo[s][glass, :3], drawn[s][glass, :3])
@@ -195,6 +215,7 @@ def test_facade_windows_signs_and_snow_stay_where_they_were(monkeypatch, shopfro
     changed = np.abs(photo[0][..., :3].astype(int) - drawn[0][..., :3]).max(2) > 6
     assert changed[wall].mean() > 0.3
     assert not changed[_glass(photo[0])].any()
+
     # ... and snow lies on the same ledges, in the same stretches (up to the one-texel
     # blur at its edges, where it mixes with whichever wall is under it).
     def snow(t):
@@ -211,7 +232,9 @@ def test_facade_windows_signs_and_snow_stay_where_they_were(monkeypatch, shopfro
 @needs_photos
 def test_side_walls_grass_and_roofs_keep_their_layout(monkeypatch):
     side = tx.side_wall_texture(77, 14.0, 12.0, "brick")
-    grass = {s: tx.ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05) for s in range(4)}
+    grass = {
+        s: tx.ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05) for s in range(4)
+    }
     roof = tx.roof_texture(9, 14.0, 14.0, snow=2, snow_pattern=3)
     monkeypatch.setattr(pt, "HAVE_SKIMAGE", False)
     side_d = tx.side_wall_texture(77, 14.0, 12.0, "brick")
@@ -222,18 +245,27 @@ def test_side_walls_grass_and_roofs_keep_their_layout(monkeypatch):
         g = tx.ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05)
         np.testing.assert_array_equal(grass[s][..., 3], g[..., 3])
         assert np.abs(grass[s][..., :3].astype(int) - g[..., :3]).mean() > 1
-    np.testing.assert_array_equal(roof[..., 3], tx.roof_texture(9, 14.0, 14.0, snow=2, snow_pattern=3)[..., 3])
+    np.testing.assert_array_equal(
+        roof[..., 3], tx.roof_texture(9, 14.0, 14.0, snow=2, snow_pattern=3)[..., 3]
+    )
 
 
 def test_procedural_fallback_without_scikit_image(procedural):
     assert not pt.available()
     f = tx.facade_texture(4242, 11.0, 10.0, 3.2, "brick", True, snow=2, snow_pattern=1)
-    np.testing.assert_array_equal(f, tx.facade_texture(4242, 11.0, 10.0, 3.2, "brick", True, snow=2, snow_pattern=1))
+    np.testing.assert_array_equal(
+        f, tx.facade_texture(4242, 11.0, 10.0, 3.2, "brick", True, snow=2, snow_pattern=1)
+    )
     s = tx.side_wall_texture(77, 14.0, 12.0, "brick")
     g = tx.ground_texture(31, "grass", 20.0, 8.0, season=1, texel=0.05)
     r = tx.roof_texture(9, 14.0, 14.0)
     for t in (f, s, g, r):
-        assert t.dtype == np.uint8 and t.shape[2] == 4 and t.shape[0] % 16 == 0 and t.shape[1] % 16 == 0
+        assert (
+            t.dtype == np.uint8
+            and t.shape[2] == 4
+            and t.shape[0] % 16 == 0
+            and t.shape[1] % 16 == 0
+        )
     # The drawn bricks: exactly 3-texel courses (7.5 cm at 2.5 cm), not the photo's ~8.4 cm.
     wall = tx._wall("brick", 96, 160, np.random.default_rng(0), 0.025, photo_seed=5)
     assert _first_peak(_autocorr(wall.mean((1, 2)), 12), 2) == pytest.approx(3.0, abs=0.05)
