@@ -22,7 +22,8 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
-from rp_jax import categories, evaluation, schedule as schedule_lib
+from rp_jax import categories, evaluation
+from rp_jax import schedule as schedule_lib
 
 __all__ = [
     "run",
@@ -63,17 +64,25 @@ def build_dataset(config, workdir: Path) -> dict:
     kwargs = {}
     if config.get("synthetic_root"):
         kwargs["synthetic_root"] = config.synthetic_root
-    builder = loading.get_builder(config.dataset, config=config.data_config,
-                                  data_dir=config.data_dir or None, **kwargs)
+    builder = loading.get_builder(
+        config.dataset, config=config.data_config, data_dir=config.data_dir or None, **kwargs
+    )
     if not builder.is_prepared():
         import tensorflow_datasets as tfds
 
         dl = tfds.download.DownloadConfig(manual_dir=config.manual_dir or None)
         builder.download_and_prepare(download_config=dl)
     keys = tuple(dict.fromkeys(_model_keys() + RECORD_KEYS))
-    return {split: loading.load_columns(config.dataset, split, keys=keys, config=config.data_config,
-                                        data_dir=config.data_dir or None)
-            for split in builder.info.splits}
+    return {
+        split: loading.load_columns(
+            config.dataset,
+            split,
+            keys=keys,
+            config=config.data_config,
+            data_dir=config.data_dir or None,
+        )
+        for split in builder.info.splits
+    }
 
 
 def _model_keys() -> tuple[str, ...]:
@@ -93,9 +102,11 @@ def model_source(columns: dict):
     return ArraySource({k: columns[k] for k in _model_keys()}, _model_keys())
 
 
-def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True) -> dict:
+def run(
+    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
+) -> dict:
     """Run one experiment end to end; returns the metrics written to ``metrics.json``."""
-    from rp_jax import plots, predict, train, time_encoding
+    from rp_jax import plots, predict, time_encoding, train
 
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -106,26 +117,43 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
     data = build_dataset(config, workdir)
     timings["dataset_s"] = time.perf_counter() - t0
     if "train" not in data or "test" not in data:
-        raise ValueError(f"{config.dataset}/{config.data_config} needs train and test splits, has {sorted(data)}")
+        raise ValueError(
+            f"{config.dataset}/{config.data_config} needs train and test splits, has {sorted(data)}"
+        )
     full_train, test = data["train"], data["test"]
     if len(test["label"]) == 0 or len(full_train["label"]) == 0:
-        raise ValueError(f"{config.dataset}/{config.data_config}: an empty split "
-                         f"(train {len(full_train['label'])}, test {len(test['label'])} points)")
+        raise ValueError(
+            f"{config.dataset}/{config.data_config}: an empty split "
+            f"(train {len(full_train['label'])}, test {len(test['label'])} points)"
+        )
     val_mask = split_validation(full_train["viewpoint"], config.validation_fraction, config.seed)
     train_cols, val_cols = subset(full_train, ~val_mask), subset(full_train, val_mask)
-    log.info("points: train %d, validation %d, test %d", len(train_cols["label"]),
-             len(val_cols["label"]), len(test["label"]))
+    log.info(
+        "points: train %d, validation %d, test %d",
+        len(train_cols["label"]),
+        len(val_cols["label"]),
+        len(test["label"]),
+    )
 
     t0 = time.perf_counter()
     val_source = model_source(val_cols) if len(val_cols["label"]) else None
-    train.train_and_evaluate(config, workdir, model_source(train_cols), val_source, schedule=schedule,
-                             progress=progress)
+    train.train_and_evaluate(
+        config, workdir, model_source(train_cols), val_source, schedule=schedule, progress=progress
+    )
     timings["train_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     rp = predict.load(workdir)
-    times = np.asarray(time_encoding.encode(test["hour"], test["minute"], test["day"], test["month"],
-                                            fields=config.time_fields, encoding=config.time_encoding))
+    times = np.asarray(
+        time_encoding.encode(
+            test["hour"],
+            test["minute"],
+            test["day"],
+            test["month"],
+            fields=config.time_fields,
+            encoding=config.time_encoding,
+        )
+    )
     pred = rp(test["patch"], test["xy_normalized"], times)
     timings["predict_s"] = time.perf_counter() - t0
 
@@ -133,47 +161,65 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progre
     tr_label, tr_mask = train_cols["label"], train_cols["label_mask"].astype(bool)
     baselines = {
         "per_slot_mean": evaluation.per_slot_mean(tr_label, tr_mask, len(label)),
-        "slot_conditioned_mean": evaluation.slot_conditioned_mean(tr_label, tr_mask, train_cols["slot"], test["slot"]),
-        "descriptor_knn": evaluation.descriptor_knn(train_cols["descriptor"], tr_label, tr_mask,
-                                                    test["descriptor"], k=config.knn_k),
+        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
+            tr_label, tr_mask, train_cols["slot"], test["slot"]
+        ),
+        "descriptor_knn": evaluation.descriptor_knn(
+            train_cols["descriptor"], tr_label, tr_mask, test["descriptor"], k=config.knn_k
+        ),
     }
 
     def scores(p):
         e = evaluation.masked_errors(p, label, mask)
-        return {"test_mse": e["mse"], "test_mae": e["mae"], "test_mse_per_slot": e["mse_per_slot"],
-                "curve_corr": evaluation.curve_corr(p, label, mask)}
+        return {
+            "test_mse": e["mse"],
+            "test_mae": e["mae"],
+            "test_mse_per_slot": e["mse_per_slot"],
+            "curve_corr": evaluation.curve_corr(p, label, mask),
+        }
 
     ours = scores(pred)
     metrics = {
         **ours,
         "baselines": {name: scores(p) for name, p in baselines.items()},
-        "counts": {"train": int(len(tr_label)), "validation": int(len(val_cols["label"])),
-                   "test": int(len(label)),
-                   "train_viewpoints": int(len(set(train_cols["viewpoint"].tolist()))),
-                   "validation_viewpoints": int(len(set(val_cols["viewpoint"].tolist()))),
-                   "test_viewpoints": int(len(set(test["viewpoint"].tolist())))},
-        "curves": {"gt": evaluation.average_curve(label, mask).tolist(),
-                   "pred": evaluation.average_curve(pred, mask).tolist(),
-                   **{name: evaluation.average_curve(p, mask).tolist() for name, p in baselines.items()}},
+        "counts": {
+            "train": int(len(tr_label)),
+            "validation": int(len(val_cols["label"])),
+            "test": int(len(label)),
+            "train_viewpoints": int(len(set(train_cols["viewpoint"].tolist()))),
+            "validation_viewpoints": int(len(set(val_cols["viewpoint"].tolist()))),
+            "test_viewpoints": int(len(set(test["viewpoint"].tolist()))),
+        },
+        "curves": {
+            "gt": evaluation.average_curve(label, mask).tolist(),
+            "pred": evaluation.average_curve(pred, mask).tolist(),
+            **{name: evaluation.average_curve(p, mask).tolist() for name, p in baselines.items()},
+        },
         "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
         "dataset": {"name": config.dataset, "config": config.data_config},
     }
     known = test["category"] >= 0
     if known.any():
         metrics["per_category"] = evaluation.per_group_errors(
-            pred, label, mask, test["category"], categories.FIGURE9_GROUPS)
+            pred, label, mask, test["category"], categories.FIGURE9_GROUPS
+        )
         metrics["per_category_baselines"] = {
-            name: {g: {k: v for k, v in d.items() if k in ("mae", "mse")}
-                   for g, d in evaluation.per_group_errors(p, label, mask, test["category"],
-                                                           categories.FIGURE9_GROUPS).items()}
-            for name, p in baselines.items()}
+            name: {
+                g: {k: v for k, v in d.items() if k in ("mae", "mse")}
+                for g, d in evaluation.per_group_errors(
+                    p, label, mask, test["category"], categories.FIGURE9_GROUPS
+                ).items()
+            }
+            for name, p in baselines.items()
+        }
     val_metrics = last_validation(workdir)
     if val_metrics:
         metrics["validation"] = val_metrics
 
     t0 = time.perf_counter()
-    figures = plots.experiment_figures(workdir, metrics, test, pred, schedule, config,
-                                       image_loader=_image_loader(config))
+    figures = plots.experiment_figures(
+        workdir, metrics, test, pred, schedule, config, image_loader=_image_loader(config)
+    )
     timings["figures_s"] = time.perf_counter() - t0
     metrics["figures"] = [str(Path(f).name) for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
@@ -186,7 +232,8 @@ def _image_loader(config):
     """(viewpoint, image_id) -> RGB of the dataset's images, for drawing keypoints; None if unreadable."""
     import importlib
 
-    from rp_jax.datasets import builder as builder_lib, loading
+    from rp_jax.datasets import builder as builder_lib
+    from rp_jax.datasets import loading
 
     try:
         if config.data_config == "real":
@@ -196,7 +243,9 @@ def _image_loader(config):
         else:
             cfg = next(c for c in builder_lib.builder_configs() if c.name == config.data_config)
             data_dir = Path(config.data_dir) if config.data_dir else loading.default_data_dir()
-            root = builder_lib.synthetic_root(data_dir.absolute(), config.dataset, cfg.size, cfg.seed)
+            root = builder_lib.synthetic_root(
+                data_dir.absolute(), config.dataset, cfg.size, cfg.seed
+            )
         captures = builder_lib.read_captures(config.dataset, root)
     except (OSError, ValueError) as e:  # figures then say "image not found"
         log.warning("cannot index the %s images for figures: %s", config.dataset, e)
@@ -233,7 +282,11 @@ def last_validation(workdir: Path) -> dict | None:
         return None
     lines = read_jsonl(path)
     val = [l for l in lines if "val_mse" in l]
-    return {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]} if val else None
+    return (
+        {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]}
+        if val
+        else None
+    )
 
 
 def _finite(obj):
@@ -277,7 +330,9 @@ def report_markdown(metrics: dict, config) -> str:
         "|---|---|---|---|",
     ]
     for name, m in rows:
-        lines.append(f"| {name} | {m['test_mae']:.4f} | {m['test_mse']:.4f} | {m['curve_corr']:.3f} |")
+        lines.append(
+            f"| {name} | {m['test_mae']:.4f} | {m['test_mse']:.4f} | {m['curve_corr']:.3f} |"
+        )
     best_base = min(b.items(), key=lambda kv: kv[1]["test_mae"])
     margins = {name: (m["test_mae"] - metrics["test_mae"]) / m["test_mae"] for name, m in b.items()}
     lines += ["", "## What this run shows", ""]
@@ -285,14 +340,20 @@ def report_markdown(metrics: dict, config) -> str:
     if len(beats) == len(b):
         verdict = f"It beats all {len(b)} baselines."
     elif beats:
-        verdict = (f"It beats {', '.join(n.replace('_', ' ') for n in beats)} but not the others; the best "
-                   f"baseline is {best_base[0].replace('_', ' ')}.")
+        verdict = (
+            f"It beats {', '.join(n.replace('_', ' ') for n in beats)} but not the others; the best "
+            f"baseline is {best_base[0].replace('_', ' ')}."
+        )
     else:
         verdict = f"It beats none of the baselines; the best is {best_base[0].replace('_', ' ')}."
     lines.append(
         f"The predictor's test MAE is {metrics['test_mae']:.4f}, against "
-        + ", ".join(f"{n.replace('_', ' ')} {b[n]['test_mae']:.4f} (margin {100 * margins[n]:+.1f} %)"
-                    for n in b) + " (margin: the baseline's error reduced by the predictor). " + verdict
+        + ", ".join(
+            f"{n.replace('_', ' ')} {b[n]['test_mae']:.4f} (margin {100 * margins[n]:+.1f} %)"
+            for n in b
+        )
+        + " (margin: the baseline's error reduced by the predictor). "
+        + verdict
     )
     gt, pr = np.array(metrics["curves"]["gt"], float), np.array(metrics["curves"]["pred"], float)
     labels = metrics["schedule"]["labels"]
@@ -301,16 +362,24 @@ def report_markdown(metrics: dict, config) -> str:
         f"lowest at {labels[int(np.nanargmin(gt))]} ({np.nanmin(gt):.3f}); the average prediction peaks at "
         f"{labels[int(np.nanargmax(pr))]} ({np.nanmax(pr):.3f}), with a correlation of {metrics['curve_corr']:.3f} "
         "between the two curves (over timestamps that have images)."
-        + (f" Timestamps without any test image: {', '.join(labels[j] for j in np.flatnonzero(~np.isfinite(gt)))}."
-           if not np.isfinite(gt).all() else "")
+        + (
+            f" Timestamps without any test image: {', '.join(labels[j] for j in np.flatnonzero(~np.isfinite(gt)))}."
+            if not np.isfinite(gt).all()
+            else ""
+        )
     )
     if "per_category" in metrics:
         cats = metrics["per_category"]
-        lines.append("Per category (test MAE, points): " + "; ".join(
-            f"{name} {d['mae']:.4f} ({d['count']})" for name, d in cats.items()) + ".")
+        lines.append(
+            "Per category (test MAE, points): "
+            + "; ".join(f"{name} {d['mae']:.4f} ({d['count']})" for name, d in cats.items())
+            + "."
+        )
     if "validation" in metrics:
         v = metrics["validation"]
-        lines.append(f"Validation (held-out training viewpoints) MAE {v['val_mae']:.4f} at epoch {v['epoch']}.")
+        lines.append(
+            f"Validation (held-out training viewpoints) MAE {v['val_mae']:.4f} at epoch {v['epoch']}."
+        )
     lines += ["", "## Figures", ""]
     for f in metrics.get("figures", []):
         lines.append(f"![{f}]({f})")

@@ -222,7 +222,7 @@ def plot_examples(
 
 
 def _distinct(candidates, xy, n: int, cell: float = 24.0) -> list[int]:
-    """The first ``n`` candidates at distinct places (the same point seen in several images once)."""
+    """The first ``n`` candidates at distinct places (a point seen in several images, once)."""
     seen, out = set(), []
     for i in candidates:
         key = tuple((np.asarray(xy[i]) // cell).astype(int))
@@ -414,7 +414,14 @@ def plot_accuracy_vs_pruning(
                 hi = np.array([intervals[method][r][th][1] for r in ratios], np.float64)
                 yerr = np.stack([np.maximum(y - lo, 0), np.maximum(hi - y, 0)])
             ax.errorbar(
-                x, y, yerr=yerr, marker=marker, color=color, ls=ls, capsize=2, ms=4,
+                x,
+                y,
+                yerr=yerr,
+                marker=marker,
+                color=color,
+                ls=ls,
+                capsize=2,
+                ms=4,
                 lw=2 if method in ("rp", "rp_paper") else 1.2,
                 label=labels.get(method, method),
             )

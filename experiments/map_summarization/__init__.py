@@ -1,1 +1,1 @@
-"""``python -m experiments.map_summarization``: map summarization with RP (Sec. V, IV-B, Fig. 11)."""
+"""``python -m experiments.map_summarization``: map summarization with RP (Sec. V, Fig. 11)."""

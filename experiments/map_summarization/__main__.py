@@ -39,7 +39,9 @@ def _pop_seeds(argv: list[str]) -> tuple[list[str], tuple[int, ...] | None]:
         try:
             seeds = tuple(int(s) for s in text.split(",") if s.strip())
         except ValueError:
-            raise SystemExit(f"--seeds {text}: expected comma-separated integers such as 0,1,2")
+            raise SystemExit(
+                f"--seeds {text}: expected comma-separated integers such as 0,1,2"
+            ) from None
         if not seeds or any(s < 0 for s in seeds):
             raise SystemExit(f"--seeds {text}: expected non-negative integers such as 0,1,2")
     return rest, seeds
@@ -78,7 +80,9 @@ def main(argv: list[str] | None = None) -> int:
             p = metrics["paired"][method][r]["5m_10deg"]["p"]
             cells.append(f"{a:5.1f}{'*' if p < 0.05 and method != 'kcover' else ' '}")
         auc = metrics["inlier_auc"].get(method)
-        print(f"  {method:16s} " + " ".join(cells) + (f"   AUC {auc:.3f}" if auc is not None else ""))
+        print(
+            f"  {method:16s} " + " ".join(cells) + (f"   AUC {auc:.3f}" if auc is not None else "")
+        )
     return 0
 
 

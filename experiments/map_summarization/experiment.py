@@ -76,7 +76,6 @@ from rp_jax.mapsum import (
     read_model,
     write_summary_model,
 )
-from rp_jax.mapsum.colmap_io import MapPoints
 from rp_jax.mapsum.observations import describe_observations, point_categories, query_scores
 from rp_jax.mapsum.oracles import agnostic_counts, redetection_counts, with_track_tiebreak
 from rp_jax.mapsum.statistics import (
@@ -168,9 +167,7 @@ def held_out_traversals(root: Path, slice_id: int, reference: set[str]) -> list:
     other than the reference one stand in for the queries (they have ground-truth poses).
     """
     caps = cmu_seasons.read(root, slices=[slice_id], include_query=False, min_group_size=1)
-    return sorted(
-        (c for c in caps if c.image_path.name not in reference), key=lambda c: c.time
-    )
+    return sorted((c for c in caps if c.image_path.name not in reference), key=lambda c: c.time)
 
 
 def load_queries(
@@ -346,8 +343,15 @@ def evaluate_world(
     timings["map_s"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    queries = load_queries(root, m.slice, dates, m.max_keypoints, vocabulary, progress,
-                           reference={im.name for im in rec.images.values()})
+    queries = load_queries(
+        root,
+        m.slice,
+        dates,
+        m.max_keypoints,
+        vocabulary,
+        progress,
+        reference={im.name for im in rec.images.values()},
+    )
     buckets: dict[dt.datetime, list[int]] = {}
     for i, q in enumerate(queries):
         buckets.setdefault(bucket(q["time"], m.time_bucket_minutes), []).append(i)
@@ -419,8 +423,10 @@ def evaluate_world(
             return np.random.default_rng(m.random_seed).permutation(mp.num_points).astype(float)
         if method == "oracle_agnostic":
             return with_track_tiebreak(
-                agnostic_counts(inliers_by_date, b.date()) if len(query_dates) > 1
-                else np.zeros(mp.num_points), mp,
+                agnostic_counts(inliers_by_date, b.date())
+                if len(query_dates) > 1
+                else np.zeros(mp.num_points),
+                mp,
             )
         if method == "oracle_date":
             return with_track_tiebreak(redetected[b.date()], mp)
@@ -447,14 +453,20 @@ def evaluate_world(
     coverage: dict[str, dict[str, list[float]]] = {k: {} for k in methods}
     kept_count: dict[str, dict[str, list[int]]] = {k: {} for k in methods}
     method_s = {k: 0.0 for k in methods}
-    bar = tqdm(total=len(ratios) * len(methods), desc=f"seed {seed} summaries", leave=False,
-               disable=not progress)
+    bar = tqdm(
+        total=len(ratios) * len(methods),
+        desc=f"seed {seed} summaries",
+        leave=False,
+        disable=not progress,
+    )
     tic = time.perf_counter()
     for ratio in ratios:
         key = f"{ratio:.1f}"
         for method in methods:
             t0 = time.perf_counter()
-            shared = None if method in time_dependent else summary(method, ratio, next(iter(buckets)))
+            shared = (
+                None if method in time_dependent else summary(method, ratio, next(iter(buckets)))
+            )
             est: dict[str, tuple | None] = {}
             res: list = [None] * len(queries)
             covs, kept = [], []
@@ -472,7 +484,10 @@ def evaluate_world(
                 if method == "rp" and abs(ratio - 0.5) < 1e-9 and b == next(iter(buckets)):
                     write_summary_model(rec, mp, keep, out_dir / "summaries" / f"rp_{key}")
             outcomes[method][key] = res
-            coverage[method][key] = [min(c[0] for c in covs), float(np.median([c[1] for c in covs]))]
+            coverage[method][key] = [
+                min(c[0] for c in covs),
+                float(np.median([c[1] for c in covs])),
+            ]
             kept_count[method][key] = kept
             write_submission(out_dir / "submissions" / f"{method}_{key}.txt", est)
             method_s[method] += time.perf_counter() - t0
@@ -484,9 +499,7 @@ def evaluate_world(
     # AUC of each method's query-time score for ranking the full map's PnP inliers among
     # the points the retrieved images see (posed queries localized on the full map).
     # K-cover has no score: its rank is the number of ratios at which a point is kept.
-    kc_rank = sum(
-        summary("kcover", r, next(iter(buckets))).astype(float) for r in ratios
-    )
+    kc_rank = sum(summary("kcover", r, next(iter(buckets))).astype(float) for r in ratios)
     auc: dict[str, dict[str, float | None]] = {}
     pairs: dict[str, list] = {k: [] for k in methods}
     labels: list[np.ndarray] = []
@@ -536,8 +549,12 @@ def evaluate_world(
             "database_images": len(mp.image_names),
             "parts": int(parts.max()) + 1,
             "descriptor_association_rate": round(float(obs.associated.mean()), 4),
-            "full_map_inlier_points": int(sum(v.astype(bool).sum() for v in inliers_by_date.values())),
-            "oracle_date_points": {d.isoformat(): int((v > 0).sum()) for d, v in redetected.items()},
+            "full_map_inlier_points": int(
+                sum(v.astype(bool).sum() for v in inliers_by_date.values())
+            ),
+            "oracle_date_points": {
+                d.isoformat(): int((v > 0).sum()) for d, v in redetected.items()
+            },
             "category_points": {
                 str(c): int(n) for c, n in zip(*np.unique(point_cat, return_counts=True))
             },
@@ -563,8 +580,10 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
 
     def stacked(method: str, ratio: str) -> np.ndarray:
         a = np.concatenate(
-            [np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
-             for s in per_seed]
+            [
+                np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
+                for s in per_seed
+            ]
         )
         return a[posed]
 
@@ -601,7 +620,9 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     full = np.concatenate(
         [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
     )[posed]
-    full_acc = {th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)}
+    full_acc = {
+        th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)
+    }
     auc = {}
     auc_per_date: dict[str, dict[str, float | None]] = {}
     for method in methods:
@@ -683,8 +704,14 @@ def run(
     for seed in seeds:
         tic = time.perf_counter()
         per_seed.append(
-            evaluate_world(config, seed, predictors, workdir / f"seed{seed}",
-                           fingerprint=fingerprint, progress=progress)
+            evaluate_world(
+                config,
+                seed,
+                predictors,
+                workdir / f"seed{seed}",
+                fingerprint=fingerprint,
+                progress=progress,
+            )
         )
         timings[f"seed{seed}_s"] = time.perf_counter() - tic
     ratios = [f"{float(r):.1f}" for r in m.ratios]
@@ -716,7 +743,9 @@ def run(
         "cmu_rp_training": {
             **training["cmu"],
             "validation": experiment.last_validation(workdir / f"rp_cmu_without_slice{m.slice}"),
-        } if "cmu" in training else None,
+        }
+        if "cmu" in training
+        else None,
         "slice": int(m.slice),
         "dataset": {
             "rp": f"robotcar/{config.data_config}",
@@ -727,15 +756,21 @@ def run(
     labels = {k: METHOD_LABELS[k] for k in methods}
     figures = [
         plots.plot_accuracy_vs_pruning(
-            metrics["accuracy"], workdir / "fig11_accuracy_vs_pruning.png",
-            intervals=metrics["interval"], full_map=metrics["full_map_accuracy"],
-            thresholds=(MAIN_THRESHOLD,), labels=labels,
+            metrics["accuracy"],
+            workdir / "fig11_accuracy_vs_pruning.png",
+            intervals=metrics["interval"],
+            full_map=metrics["full_map_accuracy"],
+            thresholds=(MAIN_THRESHOLD,),
+            labels=labels,
             title=f"{metrics['queries']} queries, seeds {seeds}",
         ),
         plots.plot_accuracy_vs_pruning(
-            metrics["accuracy"], workdir / "fig11_all_thresholds.png",
-            intervals=metrics["interval"], full_map=metrics["full_map_accuracy"],
-            thresholds=THRESHOLD_KEYS, labels=labels,
+            metrics["accuracy"],
+            workdir / "fig11_all_thresholds.png",
+            intervals=metrics["interval"],
+            full_map=metrics["full_map_accuracy"],
+            thresholds=THRESHOLD_KEYS,
+            labels=labels,
         ),
     ]
     timings["figures_s"] = time.perf_counter() - tic

@@ -73,11 +73,13 @@ def findings(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
             ref = metrics["accuracy"][metrics["reference"]]
             not_below = [r for r in ratios if acc[r][th] >= ref[r][th]]
             better = [
-                r for r in ratios
+                r
+                for r in ratios
                 if acc[r][th] > ref[r][th] and metrics["paired"][method][r][th]["p"] < ALPHA
             ]
             worse = [
-                r for r in ratios
+                r
+                for r in ratios
                 if acc[r][th] < ref[r][th] and metrics["paired"][method][r][th]["p"] < ALPHA
             ]
             out.append(
@@ -121,8 +123,9 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         "# Map summarization with predicted repeatability (Sec. V, Fig. 11)",
         "",
         "## Setup",
-        f"- RP (both `rp_paper` and `rp`) trained on `{metrics['dataset']['rp']}`: T = {len(sched)} "
-        f"timestamps {sched[0]}...{sched[-1]}, {rp['train_points']} training points "
+        f"- RP (`rp_paper`, and `rp` unless its recipe says CMU) trained on "
+        f"`{metrics['dataset']['rp']}`: T = {len(sched)} timestamps {sched[0]}...{sched[-1]}, "
+        f"{rp['train_points']} training points "
         f"({rp['train_viewpoints']} viewpoints), {rp['validation_points']} validation points, "
         f"{config.num_epochs} epochs, time input `{config.time_fields}`.",
         f"- Maps: Extended CMU Seasons slice {m.slice} reference model on world seeds "
@@ -174,7 +177,8 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         lines.append(
             f"| {labels[method]} | "
             + " | ".join(
-                f"{cov[method][r]['min']} / {cov[method][r]['median']:.0f}" for r in metrics["ratios"]
+                f"{cov[method][r]['min']} / {cov[method][r]['median']:.0f}"
+                for r in metrics["ratios"]
             )
             + " |"
         )
@@ -183,7 +187,9 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
     lines += _head("method", dates)
     for method in metrics["methods"]:
         per = metrics["inlier_auc_per_date"].get(method, {})
-        lines.append(f"| {labels[method]} | " + " | ".join(_fmt(per.get(d), 2) for d in dates) + " |")
+        lines.append(
+            f"| {labels[method]} | " + " | ".join(_fmt(per.get(d), 2) for d in dates) + " |"
+        )
     lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in metrics.get("figures", [])]
     t = metrics["timings"]
     lines += [

@@ -107,8 +107,11 @@ def train_cmu_predictor(
     if not keep.any():
         raise ValueError(f"no CMU training records outside slices {list(exclude_slices)}")
     predictor, counts = _fit(
-        cfg, rp_dir, {k: v[keep] for k, v in cols.items()},
-        batch_size=config.eval_batch_size, progress=progress,
+        cfg,
+        rp_dir,
+        {k: v[keep] for k, v in cols.items()},
+        batch_size=config.eval_batch_size,
+        progress=progress,
     )
     counts["train_slices"] = sorted(set(slice_of[keep].tolist()))
     counts["excluded_slices"] = [f"slice{s}" for s in exclude_slices]

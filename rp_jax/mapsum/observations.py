@@ -52,16 +52,15 @@ class DatabaseObservations:
       more_repeatability: name -> [n_obs, T_name] of the other predictors.
     """
 
-    def __init__(self, repeatability, descriptors, category, image_descriptors,
-                 more_repeatability=None):
+    def __init__(
+        self, repeatability, descriptors, category, image_descriptors, more_repeatability=None
+    ):
         self.repeatability = repeatability
         self.more_repeatability = dict(more_repeatability or {})
         self.descriptors = descriptors
         self.category = category
         self.image_descriptors = image_descriptors
         self.associated = np.all(np.isfinite(descriptors), axis=1)
-
-
 
 
 def _category_map(root: Path, image_path: Path) -> np.ndarray | None:

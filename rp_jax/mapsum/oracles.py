@@ -42,9 +42,7 @@ def with_track_tiebreak(counts: np.ndarray, map_points: MapPoints) -> np.ndarray
     return np.asarray(counts, np.float64) + track / (float(track.max(initial=0)) + 1.0)
 
 
-def agnostic_counts(
-    inliers_by_date: Mapping[object, np.ndarray], date: object
-) -> np.ndarray:
+def agnostic_counts(inliers_by_date: Mapping[object, np.ndarray], date: object) -> np.ndarray:
     """[P] full-map PnP inlier counts summed over every date but ``date``.
 
     Args:
@@ -76,7 +74,9 @@ def _project(xyz: np.ndarray, R: np.ndarray, t: np.ndarray, K: np.ndarray):
 def redetection_counts(
     map_points: MapPoints,
     point_descriptors: np.ndarray,
-    queries: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, Sequence[int]]],
+    queries: Iterable[
+        tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, Sequence[int]]
+    ],
     *,
     radius_px: float = 4.0,
     ratio: float = 0.8,

@@ -18,7 +18,13 @@ from rp_jax.mapsum.colmap_io import opencv_camera
 from rp_jax.mapsum.observations import point_categories, query_scores
 
 METHODS = [
-    "rp_paper", "rp", "kcover", "random", "most_observed", "oracle_agnostic", "oracle_date",
+    "rp_paper",
+    "rp",
+    "kcover",
+    "random",
+    "most_observed",
+    "oracle_agnostic",
+    "oracle_date",
 ]
 RATIOS = ["0.5", "0.7", "0.9"]
 THRESHOLDS = ["0.25m_2deg", "0.5m_5deg", "5m_10deg"]
@@ -30,9 +36,12 @@ def tiny_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("mapsum")
     workdir = tmp / "run"
     argv = [
-        "--size", "tiny",
-        "--workdir", str(workdir),
-        "--tfds-dir", str(tmp / "tfds"),
+        "--size",
+        "tiny",
+        "--workdir",
+        str(workdir),
+        "--tfds-dir",
+        str(tmp / "tfds"),
         "--config.num_epochs=1",
         f"--config.map.ratios=({','.join(RATIOS)})",
     ]
@@ -115,15 +124,19 @@ def _seed_result(posed, outcomes_rp, outcomes_kc, dates):
     cov = {m: {"0.5": [3, 5.0]} for m in METHODS}
     return {
         "queries": {"posed": posed, "dates": dates},
-        "outcomes": per, "full_map": outcomes_kc, "auc": auc, "coverage": cov,
+        "outcomes": per,
+        "full_map": outcomes_kc,
+        "auc": auc,
+        "coverage": cov,
     }
 
 
 def test_pool_scores_posed_queries_only_and_pairs_them():
     ok, no = [True] * 3, [False] * 3
     # Seed A: 4 queries, the last two without a pose (as on a real CMU download).
-    a = _seed_result([True, True, False, False], [ok, ok, ok, ok], [ok, no, no, no],
-                     ["2010-09-01"] * 4)
+    a = _seed_result(
+        [True, True, False, False], [ok, ok, ok, ok], [ok, no, no, no], ["2010-09-01"] * 4
+    )
     # Seed B: 2 posed queries.
     b = _seed_result([True, True], [ok, no], [no, no], ["2010-09-01"] * 2)
     pooled = mexp.pool([a, b], ["0.5"], resamples=200)
@@ -132,7 +145,9 @@ def test_pool_scores_posed_queries_only_and_pairs_them():
     assert pooled["accuracy"]["rp"]["0.5"]["5m_10deg"] == 75.0
     assert pooled["accuracy"]["kcover"]["0.5"]["5m_10deg"] == 25.0
     assert pooled["paired"]["rp"]["0.5"]["5m_10deg"] == {
-        "only_method": 2, "only_kcover": 0, "p": 0.5,
+        "only_method": 2,
+        "only_kcover": 0,
+        "p": 0.5,
     }
     with pytest.raises(ValueError, match="no query has a ground-truth pose"):
         mexp.pool([_seed_result([False], [ok], [ok], ["2010-09-01"])], ["0.5"])
@@ -166,7 +181,11 @@ def test_rp_config_drops_map_fields(tmp_path):
 
 def test_point_categories_majority():
     mp = MapPoints(
-        np.zeros((3, 3)), [1, 2, 3], [0, 0, 0, 1, 1], [1, 2, 3, 1, 2], [0, 0, 0, 1, 1],
+        np.zeros((3, 3)),
+        [1, 2, 3],
+        [0, 0, 0, 1, 1],
+        [1, 2, 3, 1, 2],
+        [0, 0, 0, 1, 1],
         np.zeros((5, 2)),
     )
     cats = point_categories(mp, np.array([2, 2, 0, -1, -1]))
@@ -190,7 +209,9 @@ def test_bucket():
 
 def test_opencv_camera_shifts_principal_point():
     cam = pycolmap.Camera(
-        model="OPENCV", width=100, height=80,
+        model="OPENCV",
+        width=100,
+        height=80,
         params=[90.0, 91.0, 50.5, 40.5, -0.3, 0.1, 0.001, 0.002],
     )
     K, dist, w, h = opencv_camera(cam)
@@ -205,7 +226,10 @@ def test_plot_accuracy_vs_pruning_with_intervals(tmp_path):
     acc = {m: {r: {k: 10.0 * i for k in THRESHOLDS} for i, r in enumerate(RATIOS)} for m in METHODS}
     ivl = {m: {r: {k: [0.0, 30.0] for k in THRESHOLDS} for r in RATIOS} for m in METHODS}
     path = plot_accuracy_vs_pruning(
-        acc, tmp_path / "f.png", intervals=ivl, full_map={k: 80.0 for k in THRESHOLDS},
+        acc,
+        tmp_path / "f.png",
+        intervals=ivl,
+        full_map={k: 80.0 for k in THRESHOLDS},
         thresholds=THRESHOLDS,
     )
     img = cv2.imread(str(path))

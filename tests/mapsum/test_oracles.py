@@ -11,8 +11,13 @@ def _map(xyz, track_lengths):
     obs_point = np.repeat(np.arange(len(xyz)), track_lengths)
     n = len(obs_point)
     return MapPoints(
-        np.asarray(xyz, float), np.arange(len(xyz)) + 1, obs_point, np.ones(n, int),
-        np.arange(n), np.zeros((n, 2)), image_names={1: "db.jpg"},
+        np.asarray(xyz, float),
+        np.arange(len(xyz)) + 1,
+        obs_point,
+        np.ones(n, int),
+        np.arange(n),
+        np.zeros((n, 2)),
+        image_names={1: "db.jpg"},
     )
 
 
@@ -53,7 +58,8 @@ def test_redetection_counts_on_a_tiny_world():
     # Query 1 re-detects 0, 1, 3; point 2's keypoint looks different. Query 2 re-detects
     # 0 and 1 but 1 is 10 px off (a wrong match geometrically); 4 and 5 are never visible.
     counts = redetection_counts(
-        mp, desc,
+        mp,
+        desc,
         [query([0, 1, 2, 3], redraw=[2]), _shifted(uv, desc, K)],
         radius_px=4.0,
     )

@@ -65,7 +65,12 @@ def test_inlier_auc_by_hand():
 def test_image_coverage():
     # Three points; image 1 sees points 0 and 1, image 2 sees points 1 and 2.
     mp = MapPoints(
-        np.zeros((3, 3)), [10, 11, 12], [0, 1, 1, 2], [1, 1, 2, 2], [0, 1, 0, 1], np.zeros((4, 2)),
+        np.zeros((3, 3)),
+        [10, 11, 12],
+        [0, 1, 1, 2],
+        [1, 1, 2, 2],
+        [0, 1, 0, 1],
+        np.zeros((4, 2)),
         image_names={1: "a.jpg", 2: "b.jpg"},
     )
     assert image_coverage(mp, np.array([True, True, True])) == (2, 2.0)

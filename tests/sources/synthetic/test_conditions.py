@@ -38,9 +38,11 @@ def test_cmu_dec21_is_snowy_for_every_street_of_the_city():
 def test_no_snow_in_summer_or_in_the_tropics():
     assert cond.snow_state(3, dt.date(2011, 7, 28), *PITTSBURGH)[0] == 0
     assert all(cond.snow_state(3, d, 20.0, -100.0)[0] == 0 for d in _winter_days(2010))
+
     # Colder places have more snow.
     def share(lat):
         return np.mean([cond.snow_state(3, d, lat, -79.0)[0] > 0 for d in _winter_days(2005)])
+
     assert share(35.0) < share(40.4) < share(46.0) or share(40.4) == share(46.0) == 1.0
 
 
@@ -59,8 +61,13 @@ def test_snow_patterns_differ_between_snowfalls():
     np.testing.assert_array_equal(a, c)
     assert np.mean(np.abs(a.astype(int) - b.astype(int)).max(-1) > 30) > 0.2
     # A deeper pack covers more: sidewalks are white at level 3, not at level 1.
-    white = [np.mean(tx.ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1) > 200)
-             for s in (1, 3)]
+    white = [
+        np.mean(
+            tx.ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1)
+            > 200
+        )
+        for s in (1, 3)
+    ]
     assert white[1] > white[0] + 0.3
 
 

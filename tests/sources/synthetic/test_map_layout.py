@@ -18,8 +18,12 @@ def test_available_query_dates_of_the_presets():
 def test_ensure_layout_rejects_a_date_without_queries(tmp_path):
     with pytest.raises(ValueError, match="query dates are"):
         map_layout.ensure_cmu_map_layout(
-            tmp_path, size="tiny", seed=0, slice_id=8,
-            query_dates=[dt.date(2011, 3, 4)], progress=False,
+            tmp_path,
+            size="tiny",
+            seed=0,
+            slice_id=8,
+            query_dates=[dt.date(2011, 3, 4)],
+            progress=False,
         )
 
 
@@ -38,8 +42,12 @@ def test_ensure_layout_renders_an_older_world_again(tmp_path, monkeypatch):
     monkeypatch.setattr(presets, "run_jobs", fake_run_jobs)
     with pytest.raises(RuntimeError, match="stop after"):
         map_layout.ensure_cmu_map_layout(
-            root, size="tiny", seed=0, slice_id=8,
-            query_dates=[dt.date(2010, 9, 1)], progress=False,
+            root,
+            size="tiny",
+            seed=0,
+            slice_id=8,
+            query_dates=[dt.date(2010, 9, 1)],
+            progress=False,
         )
     assert not (root / "stale.jpg").exists()  # the version-1 frames are gone
     # The render was reached (Sep 01 has tiny queries): 8 reference frames + 8 queries.
