@@ -36,7 +36,9 @@ def _vignette(width: int, height: int, fx: float, cx: float, cy: float) -> np.nd
 @functools.lru_cache(maxsize=16)
 def _vignette3(width: int, height: int, fx: float, cx: float, cy: float) -> np.ndarray:
     """The vignetting map repeated over the three colour channels (H, W, 3), contiguous."""
-    return np.ascontiguousarray(np.repeat(_vignette(width, height, fx, cx, cy)[..., None], 3, axis=-1))
+    return np.ascontiguousarray(
+        np.repeat(_vignette(width, height, fx, cx, cy)[..., None], 3, axis=-1)
+    )
 
 
 @functools.lru_cache(maxsize=1)
@@ -54,13 +56,14 @@ def _noise_bank() -> np.ndarray:
 
 
 def _gaussian_noise(shape: tuple, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-    """Unit Gaussian noise: a random window of a cached bank and a random sign (cheap, contiguous)."""
+    """Unit Gaussian noise: a random window of a cached bank and a random sign (cheap,
+    contiguous)."""
     n = int(np.prod(shape))
     bank = _noise_bank()
     if n > bank.size // 2:
         return rng.standard_normal(shape, dtype=np.float32), 1.0
     start = int(rng.integers(0, bank.size - n))
-    return bank[start:start + n].reshape(shape), (-1.0 if rng.random() < 0.5 else 1.0)
+    return bank[start : start + n].reshape(shape), (-1.0 if rng.random() < 0.5 else 1.0)
 
 
 @functools.lru_cache(maxsize=1)
@@ -74,7 +77,9 @@ def _zero_map(height: int, width: int) -> np.ndarray:
     return np.zeros((height, width), np.float32)
 
 
-def expose(radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+def expose(
+    radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, dict]:
     """Turns linear scene radiance into a webcam's 8-bit RGB image.
 
     Vignetting and gain are one multiply by a cached map; the noise and the quantisation
@@ -89,7 +94,8 @@ def expose(radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator) -> tup
       (rgb uint8 (H, W, 3), meta with ``gain``, ``exposure_mean``, ``noise_sigma``).
     """
     h, w = radiance.shape[:2]
-    img = np.ascontiguousarray(radiance, np.float32)  # (the lens PSF is applied to the albedo by the renderer)
+    # (the lens PSF is applied to the albedo by the renderer)
+    img = np.ascontiguousarray(radiance, np.float32)
     vig = _vignette3(w, h, float(K[0, 0]), float(K[0, 2]), float(K[1, 2]))
     lum = (img[::4, ::4] * vig[::4, ::4]) @ np.float32([0.2126, 0.7152, 0.0722])
     mean = float(np.mean(np.minimum(lum, 2.0)))
@@ -106,6 +112,11 @@ def expose(radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator) -> tup
     # Tone curve: a lookup of the 12-bit code in a 1 x 4096 image (remap clamps to its ends).
     codes = img.reshape(h, w * 3)
     codes *= 4095.0
-    rgb = cv2.remap(_srgb_lut_image(), codes, _zero_map(h, w * 3), cv2.INTER_NEAREST,
-                    borderMode=cv2.BORDER_REPLICATE).reshape(h, w, 3)
+    rgb = cv2.remap(
+        _srgb_lut_image(),
+        codes,
+        _zero_map(h, w * 3),
+        cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_REPLICATE,
+    ).reshape(h, w, 3)
     return rgb, {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * rel)}

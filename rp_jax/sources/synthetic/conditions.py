@@ -27,8 +27,18 @@ import numpy as np
 
 from rp_jax.sources.synthetic import sun as sunlib
 
-__all__ = ["Conditions", "conditions_at", "weather_of_day", "season_of_day", "snow_level", "snow_state",
-           "air_temperature", "WEATHERS", "CLIMATE_SEED", "SNOW_LEVELS_CM"]
+__all__ = [
+    "Conditions",
+    "conditions_at",
+    "weather_of_day",
+    "season_of_day",
+    "snow_level",
+    "snow_state",
+    "air_temperature",
+    "WEATHERS",
+    "CLIMATE_SEED",
+    "SNOW_LEVELS_CM",
+]
 
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
 
@@ -114,8 +124,12 @@ def weather_of_day(seed: int, date: dt.date, latitude: float) -> tuple[str, floa
     winter = 0.5 + 0.5 * np.cos(2 * np.pi * (d - 15) / 365.0)  # 1 mid January, 0 mid July
     p = np.array([0.38 - 0.12 * winter, 0.30, 0.18 + 0.12 * winter, 0.14])
     kind = str(rng.choice(["clear", "partly_cloudy", "overcast", "rain"], p=p / p.sum()))
-    cover = {"clear": rng.uniform(0.0, 0.1), "partly_cloudy": rng.uniform(0.3, 0.65),
-             "overcast": rng.uniform(0.9, 1.0), "rain": 1.0}[kind]
+    cover = {
+        "clear": rng.uniform(0.0, 0.1),
+        "partly_cloudy": rng.uniform(0.3, 0.65),
+        "overcast": rng.uniform(0.9, 1.0),
+        "rain": 1.0,
+    }[kind]
     wind = rng.normal(0, 6.0, 2)
     return kind, float(cover), wind
 
@@ -153,7 +167,9 @@ def _climate_temperature(doy: np.ndarray, latitude: float) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=256)
-def _regional_winter(latitude: float, longitude: float, start_ordinal: int) -> tuple[np.ndarray, np.ndarray]:
+def _regional_winter(
+    latitude: float, longitude: float, start_ordinal: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Daily (temperature deg C, precipitation mm of water) of one winter season in a region.
 
     The region is the 1-degree cell of (latitude, longitude); the temperature anomaly is an
@@ -163,7 +179,9 @@ def _regional_winter(latitude: float, longitude: float, start_ordinal: int) -> t
     cell = (int(np.floor(latitude)) & 0xFFFF, int(np.floor(longitude)) & 0xFFFF)
     rng = np.random.default_rng([CLIMATE_SEED, 13, *cell, start_ordinal])
     start = dt.date.fromordinal(start_ordinal)
-    doy = np.array([_day_of_year(start + dt.timedelta(days=k), latitude) for k in range(_SEASON_DAYS)])
+    doy = np.array(
+        [_day_of_year(start + dt.timedelta(days=k), latitude) for k in range(_SEASON_DAYS)]
+    )
     eps = rng.standard_normal(_SEASON_DAYS)
     anomaly = np.zeros(_SEASON_DAYS)
     a = 0.0
@@ -177,8 +195,9 @@ def _regional_winter(latitude: float, longitude: float, start_ordinal: int) -> t
 
 
 @functools.lru_cache(maxsize=1024)
-def _snow_pack(seed: int, latitude: float, longitude: float, start_ordinal: int) -> tuple[np.ndarray, np.ndarray,
-                                                                                              np.ndarray]:
+def _snow_pack(
+    seed: int, latitude: float, longitude: float, start_ordinal: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Daily snow depth (cm), snowfall flag and last-snowfall ordinal of a scene's winter.
 
     Snow falls on wet days below 0.5 C (1 cm of snow per mm of water); the pack melts by
@@ -200,13 +219,21 @@ def _snow_pack(seed: int, latitude: float, longitude: float, start_ordinal: int)
         if snowing:
             d += precip[k]
             last_fall = start_ordinal + k
-        melt = max(temp[k] + 1.5, 0.0) * (1.5 + 0.1 * precip[k] * (not snowing)) + 1.5 * sun * (d > 0)
+        melt = max(temp[k] + 1.5, 0.0) * (1.5 + 0.1 * precip[k] * (not snowing)) + 1.5 * sun * (
+            d > 0
+        )
         d = max(0.0, 0.95 * d - exposure * melt)
-        depth[k], fell[k], last[k] = d, snowing and d >= SNOW_LEVELS_CM[0], last_fall if d > 0 else 0
+        depth[k], fell[k], last[k] = (
+            d,
+            snowing and d >= SNOW_LEVELS_CM[0],
+            last_fall if d > 0 else 0,
+        )
     return depth, fell, last
 
 
-def snow_state(seed: int, date: dt.date, latitude: float, longitude: float = 0.0) -> tuple[int, bool, int, float]:
+def snow_state(
+    seed: int, date: dt.date, latitude: float, longitude: float = 0.0
+) -> tuple[int, bool, int, float]:
     """Snow on the ground on a date: (level 0..4, snowing that day, pattern id, depth cm).
 
     Deterministic per (scene seed, place, date). The snow pack is simulated day by day over
@@ -220,8 +247,9 @@ def snow_state(seed: int, date: dt.date, latitude: float, longitude: float = 0.0
     k = (date - start).days
     if k >= _SEASON_DAYS:
         return 0, False, 0, 0.0
-    depth, fell, last = _snow_pack(int(seed), round(float(latitude), 3), round(float(longitude), 3),
-                                   start.toordinal())
+    depth, fell, last = _snow_pack(
+        int(seed), round(float(latitude), 3), round(float(longitude), 3), start.toordinal()
+    )
     level = int(np.digitize(depth[k], SNOW_LEVELS_CM))
     return level, bool(fell[k]), int(last[k]) if level else 0, float(depth[k])
 
@@ -231,11 +259,17 @@ def air_temperature(date: dt.date, latitude: float, longitude: float = 0.0) -> f
     start = _season_start(date, latitude)
     k = (date - start).days
     if k < _SEASON_DAYS:
-        return float(_regional_winter(round(float(latitude), 3), round(float(longitude), 3), start.toordinal())[0][k])
+        return float(
+            _regional_winter(
+                round(float(latitude), 3), round(float(longitude), 3), start.toordinal()
+            )[0][k]
+        )
     return float(_climate_temperature(np.array([_day_of_year(date, latitude)]), latitude)[0])
 
 
-def snow_level(seed: int, date: dt.date, latitude: float, longitude: float = 0.0) -> tuple[int, bool]:
+def snow_level(
+    seed: int, date: dt.date, latitude: float, longitude: float = 0.0
+) -> tuple[int, bool]:
     """Snow cover level 0..4 on a date, and whether it snows that day (see ``snow_state``)."""
     level, snowing, _, _ = snow_state(seed, date, latitude, longitude)
     return level, snowing
@@ -246,8 +280,9 @@ def _air_mass(el_deg: float) -> float:
     return 1.0 / (np.sin(np.radians(el)) + 0.50572 * (el + 6.07995) ** -1.6364)
 
 
-def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetime,
-                  weather: str | None = None) -> Conditions:
+def conditions_at(
+    seed: int, latitude: float, longitude: float, when: dt.datetime, weather: str | None = None
+) -> Conditions:
     """The capture conditions of a scene at an instant.
 
     Args:
@@ -275,7 +310,11 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         cover = {"clear": 0.05, "partly_cloudy": 0.45, "overcast": 0.95, "rain": 1.0}[kind]
     if snowing:
         kind, cover = "snow", 1.0
-    elif kind == "rain" and abs(latitude) >= 28.0 and air_temperature(date, latitude, longitude) < 0.0:
+    elif (
+        kind == "rain"
+        and abs(latitude) >= 28.0
+        and air_temperature(date, latitude, longitude) < 0.0
+    ):
         kind = "overcast"  # no rain on a freezing day
     density, autumn, grass = season_of_day(date, latitude)
     hour = when.hour + when.minute / 60.0 + when.second / 3600.0
@@ -301,11 +340,15 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         direct = direct * (1.0 - 0.25 * cover)
     sky_level = sky_level * twilight + night_floor
     low = np.clip(1.0 - el / 15.0, 0.0, 1.0)
-    sky_col = np.array([0.70, 0.82, 1.10]) * (1 - 0.4 * low) + np.array([1.0, 0.75, 0.6]) * 0.4 * low
+    sky_col = (
+        np.array([0.70, 0.82, 1.10]) * (1 - 0.4 * low) + np.array([1.0, 0.75, 0.6]) * 0.4 * low
+    )
     if kind in ("overcast", "rain", "snow"):
         sky_col = np.array([0.92, 0.95, 1.0])
     if el < -2:
-        sky_col = np.array([0.45, 0.55, 1.0]) * (el > -12) + np.array([1.0, 0.75, 0.5]) * (el <= -12)
+        sky_col = np.array([0.45, 0.55, 1.0]) * (el > -12) + np.array([1.0, 0.75, 0.5]) * (
+            el <= -12
+        )
     sky_rgb = sky_level * sky_col / sky_col.mean()
     zenith = np.array([0.22, 0.38, 0.85]) * (0.35 + 0.8 * s**0.5)
     horizon = np.array([0.75, 0.82, 0.95]) * (0.6 + 0.6 * s**0.5)
@@ -318,7 +361,8 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
         if kind == "rain":
             zenith, horizon = zenith * 0.7, horizon * 0.75
     zenith = zenith * twilight + np.array([0.0004, 0.0005, 0.001])
-    horizon = horizon * twilight + np.array([0.003, 0.002, 0.0012])  # city glow at night (~1/300 of day)
+    # city glow at night (~1/300 of day)
+    horizon = horizon * twilight + np.array([0.003, 0.002, 0.0012])
     lamps_on = el < 1.0 or (kind in ("rain", "snow") and el < 6.0)
     if 17 <= hour < 23:
         lit = 0.55
@@ -329,12 +373,25 @@ def conditions_at(seed: int, latitude: float, longitude: float, when: dt.datetim
     else:
         lit = 0.1
     return Conditions(
-        sun_elevation_deg=el, sun_azimuth_deg=az, sun_dir=sunlib.sun_direction(el, az),
-        weather=kind, cloud_cover=cover, wet=kind == "rain", snow=snow, snow_pattern=snow_pattern, foliage=round(density * 20) / 20,
-        autumn=round(autumn * 10) / 10, grass=grass, sun_rgb=direct.astype(np.float32),
-        sky_rgb=sky_rgb.astype(np.float32), zenith_rgb=zenith.astype(np.float32),
-        horizon_rgb=horizon.astype(np.float32), lamps_on=bool(lamps_on), window_lit_prob=lit,
-        cloud_offset=(wind * (ts % 86400.0)).astype(np.float64), wind_speed=float(np.hypot(*wind)),
+        sun_elevation_deg=el,
+        sun_azimuth_deg=az,
+        sun_dir=sunlib.sun_direction(el, az),
+        weather=kind,
+        cloud_cover=cover,
+        wet=kind == "rain",
+        snow=snow,
+        snow_pattern=snow_pattern,
+        foliage=round(density * 20) / 20,
+        autumn=round(autumn * 10) / 10,
+        grass=grass,
+        sun_rgb=direct.astype(np.float32),
+        sky_rgb=sky_rgb.astype(np.float32),
+        zenith_rgb=zenith.astype(np.float32),
+        horizon_rgb=horizon.astype(np.float32),
+        lamps_on=bool(lamps_on),
+        window_lit_prob=lit,
+        cloud_offset=(wind * (ts % 86400.0)).astype(np.float64),
+        wind_speed=float(np.hypot(*wind)),
         local_hour=hour,
         day_of_year=date.timetuple().tm_yday,
     )

@@ -96,9 +96,11 @@ def redetected(kp_a: np.ndarray, kp_b: np.ndarray, tol: float = TOLERANCE_PX) ->
     return d <= tol
 
 
-def redetection_rate(kp_a: np.ndarray, kp_b: np.ndarray, select: np.ndarray | None = None,
-                     tol: float = TOLERANCE_PX) -> float:
-    """Fraction of (selected) keypoints of ``kp_a`` re-detected in ``kp_b``; NaN if none selected."""
+def redetection_rate(
+    kp_a: np.ndarray, kp_b: np.ndarray, select: np.ndarray | None = None, tol: float = TOLERANCE_PX
+) -> float:
+    """Fraction of (selected) keypoints of ``kp_a`` re-detected in ``kp_b``; NaN if none
+    selected."""
     hit = redetected(kp_a, kp_b, tol)
     if select is not None:
         hit = hit[select]
@@ -121,8 +123,15 @@ def _luminance(rgb: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(g, (0, 0), 1.5)
 
 
-def shadow_boundary(rgb: np.ndarray, day_frames: list[np.ndarray], category: np.ndarray, *,
-                    ratio: float = 0.6, band_px: int = 3, movers_px: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def shadow_boundary(
+    rgb: np.ndarray,
+    day_frames: list[np.ndarray],
+    category: np.ndarray,
+    *,
+    ratio: float = 0.6,
+    band_px: int = 3,
+    movers_px: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Cast shadows on the ground of one frame and their boundary, found from pixels only.
 
     A ground pixel is in shadow when it is much darker than its brightest state over the
@@ -197,11 +206,15 @@ def _clear_days(scene: Scene, year: int, month: int, n: int) -> list[dt.date]:
             days.append(date)
             if len(days) == n:
                 return days
-    raise ValueError(f"scene seed {scene.seed}: fewer than {n} clear days in {year}-{month:02d}; "
-                     f"expected at least {n} (pick another seed)")
+    raise ValueError(
+        f"scene seed {scene.seed}: fewer than {n} clear days in {year}-{month:02d}; "
+        f"expected at least {n} (pick another seed)"
+    )
 
 
-def default_setup(width: int = 640, height: int = 480, seed: int = 11, *, full_day: bool = True) -> EmergenceSetup:
+def default_setup(
+    width: int = 640, height: int = 480, seed: int = 11, *, full_day: bool = True
+) -> EmergenceSetup:
     """A webcam over a tree-lined street, high on the south side, looking at the north facades.
 
     Args:
@@ -213,10 +226,20 @@ def default_setup(width: int = 640, height: int = 480, seed: int = 11, *, full_d
       ``EmergenceSetup``.
     """
     scene = build_scene(seed, length_m=60.0, vegetation=0.5)
-    view = look_at((28.0, scene.sidewalk_y[0], 6.0), (36.0, scene.facade_y[1], 3.0), width=width, height=height,
-                   fov_deg=75.0)
-    street_view = look_at((28.0, scene.sidewalk_y[1], 6.0), (36.0, scene.facade_y[0], 2.0), width=width,
-                          height=height, fov_deg=75.0)
+    view = look_at(
+        (28.0, scene.sidewalk_y[0], 6.0),
+        (36.0, scene.facade_y[1], 3.0),
+        width=width,
+        height=height,
+        fov_deg=75.0,
+    )
+    street_view = look_at(
+        (28.0, scene.sidewalk_y[1], 6.0),
+        (36.0, scene.facade_y[0], 2.0),
+        width=width,
+        height=height,
+        fov_deg=75.0,
+    )
     day_a, day_b = _clear_days(scene, 2024, 7, 2)
     winter = dt.date(2024, 1, 17)
     if full_day:
@@ -279,10 +302,16 @@ def _render_all(setup: EmergenceSetup, progress: bool) -> dict:
     jobs = [("a", h, _at(setup.day_a, h)) for h in setup.hours]
     jobs += [("b", h, _at(setup.day_b, h)) for h in setup.hours_b]
     jobs += [("w", 12.0, _at(setup.winter_day, 12.0))]
-    jobs += [("sa", h, _at(setup.day_a, h)) for h in _daylight(setup.hours)] + [("sb", 10.0, _at(setup.day_b, 10.0))]
+    jobs += [("sa", h, _at(setup.day_a, h)) for h in _daylight(setup.hours)] + [
+        ("sb", 10.0, _at(setup.day_b, 10.0))
+    ]
     frames = {}
-    for n, (tag, h, when) in enumerate(tqdm(jobs, desc="emergence: render + SIFT", disable=not progress)):
-        f = render(setup.scene, setup.street_view if tag.startswith("s") else setup.view, when, seed=n)
+    for n, (tag, h, when) in enumerate(
+        tqdm(jobs, desc="emergence: render + SIFT", disable=not progress)
+    ):
+        f = render(
+            setup.scene, setup.street_view if tag.startswith("s") else setup.view, when, seed=n
+        )
         frames[(tag, h)] = (f, detect(f.rgb))
     return frames
 
@@ -309,8 +338,12 @@ def measure(setup: EmergenceSetup, *, progress: bool = True) -> tuple[EmergentEf
     b = {h: fr[("b", h)] for h in setup.hours_b}
     W, H = setup.view.width, setup.view.height
     counts = [len(a[h][1]) for h in setup.hours]
-    spread = [[float(np.ptp(a[h][1][:, 0]) / W), float(np.ptp(a[h][1][:, 1]) / H)] if len(a[h][1]) > 1 else [0.0, 0.0]
-              for h in setup.hours]
+    spread = [
+        [float(np.ptp(a[h][1][:, 0]) / W), float(np.ptp(a[h][1][:, 1]) / H)]
+        if len(a[h][1]) > 1
+        else [0.0, 0.0]
+        for h in setup.hours
+    ]
     # Same day, hours apart (references: the daylight hours 9-15 of day A).
     dts, rates = [], []
     for h0 in [h for h in setup.hours if 9 <= h <= 15]:
@@ -323,35 +356,69 @@ def measure(setup: EmergenceSetup, *, progress: bool = True) -> tuple[EmergentEf
     f12, k12 = a[12.0]
     cat12 = category_of(k12, f12.category)
     bld = cat12 == categories.BUILDING
-    facade = {"midday_other_day": redetection_rate(k12, b[12.0][1], bld),
-              "dusk_other_day": redetection_rate(k12, b[DUSK_HOUR][1], bld), "n": int(bld.sum())}
+    facade = {
+        "midday_other_day": redetection_rate(k12, b[12.0][1], bld),
+        "dusk_other_day": redetection_rate(k12, b[DUSK_HOUR][1], bld),
+        "n": int(bld.sum()),
+    }
     # Shadow boundaries on the ground at 10:00 (street view), found from day A's daylight frames.
     f10, k10 = fr[("sa", 10.0)]
     daylight = [fr[("sa", h)][0].rgb for h in _daylight(setup.hours) if h != 10.0]
     _, boundary = shadow_boundary(f10.rgb, daylight, f10.category, movers_px=_movers_px(W))
     cat10 = category_of(k10, f10.category)
-    xi = np.clip(np.round(k10).astype(int), 0, [W - 1, H - 1]) if len(k10) else np.zeros((0, 2), int)
+    xi = (
+        np.clip(np.round(k10).astype(int), 0, [W - 1, H - 1]) if len(k10) else np.zeros((0, 2), int)
+    )
     on_edge = boundary[xi[:, 1], xi[:, 0]] if len(k10) else np.zeros(0, bool)
-    interior = (cat10 == categories.GROUND) & ~on_edge  # (ground keypoints away from shadow boundaries)
+    interior = (
+        cat10 == categories.GROUND
+    ) & ~on_edge  # (ground keypoints away from shadow boundaries)
     k15, k10b = fr[("sa", 15.0)][1], fr[("sb", 10.0)][1]
-    shadow_edge = {"at_15h_same_day": redetection_rate(k10, k15, on_edge),
-                   "at_10h_other_day": redetection_rate(k10, k10b, on_edge), "n": int(on_edge.sum()),
-                   "interior_at_15h_same_day": redetection_rate(k10, k15, interior),
-                   "interior_at_10h_other_day": redetection_rate(k10, k10b, interior)}
+    shadow_edge = {
+        "at_15h_same_day": redetection_rate(k10, k15, on_edge),
+        "at_10h_other_day": redetection_rate(k10, k10b, on_edge),
+        "n": int(on_edge.sum()),
+        "interior_at_15h_same_day": redetection_rate(k10, k15, interior),
+        "interior_at_10h_other_day": redetection_rate(k10, k10b, interior),
+    }
     # Trees: July keypoints on VEGETATION, in July (another day) and in January.
     veg = cat12 == categories.VEGETATION
     kw = fr[("w", 12.0)][1]
-    vegetation = {"july_other_day": redetection_rate(k12, b[12.0][1], veg),
-                  "january": redetection_rate(k12, kw, veg), "n": int(veg.sum())}
+    vegetation = {
+        "july_other_day": redetection_rate(k12, b[12.0][1], veg),
+        "january": redetection_rate(k12, kw, veg),
+        "n": int(veg.sum()),
+    }
     veh = cat12 == categories.VEHICLE
-    vehicle = {"other_day": redetection_rate(k12, b[12.0][1], veh),
-               "building_other_day": facade["midday_other_day"], "n": int(veh.sum())}
-    meta = {"day_a": str(setup.day_a), "day_b": str(setup.day_b), "winter_day": str(setup.winter_day),
-            "width": W, "height": H, "tolerance_px": TOLERANCE_PX, "scene_seed": setup.scene.seed,
-            "winter_snow_level": int(fr[("w", 12.0)][0].meta["snow"]),
-            "winter_foliage": float(fr[("w", 12.0)][0].meta["foliage"])}
-    effects = EmergentEffects(list(setup.hours), counts, spread, dts, rates, other, facade, shadow_edge,
-                              vegetation, vehicle, meta)
+    vehicle = {
+        "other_day": redetection_rate(k12, b[12.0][1], veh),
+        "building_other_day": facade["midday_other_day"],
+        "n": int(veh.sum()),
+    }
+    meta = {
+        "day_a": str(setup.day_a),
+        "day_b": str(setup.day_b),
+        "winter_day": str(setup.winter_day),
+        "width": W,
+        "height": H,
+        "tolerance_px": TOLERANCE_PX,
+        "scene_seed": setup.scene.seed,
+        "winter_snow_level": int(fr[("w", 12.0)][0].meta["snow"]),
+        "winter_foliage": float(fr[("w", 12.0)][0].meta["foliage"]),
+    }
+    effects = EmergentEffects(
+        list(setup.hours),
+        counts,
+        spread,
+        dts,
+        rates,
+        other,
+        facade,
+        shadow_edge,
+        vegetation,
+        vehicle,
+        meta,
+    )
     return effects, fr
 
 
@@ -385,12 +452,18 @@ def plot(effects: EmergentEffects, frames: dict, path: Path) -> Path:
     fig, ax = plt.subplots(2, 3, figsize=(17, 10))
     # (a) noon frame with keypoints by category.
     f12, k12 = frames[("a", 12.0)]
-    palette = {categories.BUILDING: (255, 60, 60), categories.VEGETATION: (40, 220, 40),
-               categories.VEHICLE: (60, 120, 255), categories.GROUND: (255, 220, 0)}
+    palette = {
+        categories.BUILDING: (255, 60, 60),
+        categories.VEGETATION: (40, 220, 40),
+        categories.VEHICLE: (60, 120, 255),
+        categories.GROUND: (255, 220, 0),
+    }
     cat = category_of(k12, f12.category)
     ax[0, 0].imshow(_draw_points(f12.rgb, k12, [palette.get(int(c), (255, 255, 255)) for c in cat]))
-    ax[0, 0].set_title(f"(a) {e.meta['day_a']} 12:00: {len(k12)} SIFT keypoints\n"
-                       "red building, green tree, blue car, yellow ground")
+    ax[0, 0].set_title(
+        f"(a) {e.meta['day_a']} 12:00: {len(k12)} SIFT keypoints\n"
+        "red building, green tree, blue car, yellow ground"
+    )
     ax[0, 0].axis("off")
     # (b) keypoints per frame through the day.
     ax[0, 1].bar(e.hours, e.counts, width=0.8, color="tab:blue")
@@ -403,22 +476,46 @@ def plot(effects: EmergentEffects, frames: dict, path: Path) -> Path:
     for d in np.unique(dts):
         ax[0, 2].plot([d - 0.3, d + 0.3], [np.nanmean(rates[dts == d])] * 2, color="k", lw=2)
     od = np.array([v for v in e.other_day_rates.values()], float)
-    ax[0, 2].scatter(np.zeros(len(od)), od, s=40, color="tab:red", marker="D", label="same hour, other day")
+    ax[0, 2].scatter(
+        np.zeros(len(od)), od, s=40, color="tab:red", marker="D", label="same hour, other day"
+    )
     for h, r in e.other_day_rates.items():
         if np.isfinite(r):
-            ax[0, 2].annotate(f"{float(h):g}h", (0.0, r), xytext=(6, -3), textcoords="offset points", fontsize=7)
+            ax[0, 2].annotate(
+                f"{float(h):g}h", (0.0, r), xytext=(6, -3), textcoords="offset points", fontsize=7
+            )
     ax[0, 2].set_xlabel("time difference (hours); 0 = same hour on another day")
     ax[0, 2].set_ylabel(f"re-detected within {TOLERANCE_PX} px")
     ax[0, 2].set_ylim(0, 1)
     ax[0, 2].legend(loc="upper right")
     ax[0, 2].set_title("(c) re-detection falls with time of day, not with days")
     # (d) per-category effects.
-    groups = [("facade:\nmidday | dusk", e.facade["midday_other_day"], e.facade["dusk_other_day"], e.facade["n"]),
-              ("shadow edge:\n10h other day | 15h", e.shadow_edge["at_10h_other_day"],
-               e.shadow_edge["at_15h_same_day"], e.shadow_edge["n"]),
-              ("tree:\nJuly | January", e.vegetation["july_other_day"], e.vegetation["january"], e.vegetation["n"]),
-              ("other day:\nbuilding | car", e.vehicle["building_other_day"], e.vehicle["other_day"],
-               e.vehicle["n"])]
+    groups = [
+        (
+            "facade:\nmidday | dusk",
+            e.facade["midday_other_day"],
+            e.facade["dusk_other_day"],
+            e.facade["n"],
+        ),
+        (
+            "shadow edge:\n10h other day | 15h",
+            e.shadow_edge["at_10h_other_day"],
+            e.shadow_edge["at_15h_same_day"],
+            e.shadow_edge["n"],
+        ),
+        (
+            "tree:\nJuly | January",
+            e.vegetation["july_other_day"],
+            e.vegetation["january"],
+            e.vegetation["n"],
+        ),
+        (
+            "other day:\nbuilding | car",
+            e.vehicle["building_other_day"],
+            e.vehicle["other_day"],
+            e.vehicle["n"],
+        ),
+    ]
     x = np.arange(len(groups))
     good = [np.nan_to_num(g[1]) for g in groups]
     bad = [np.nan_to_num(g[2]) for g in groups]
@@ -434,29 +531,40 @@ def plot(effects: EmergentEffects, frames: dict, path: Path) -> Path:
     # (e) shadow-edge keypoints at 10:00, coloured by re-detection at 15:00.
     f10, k10 = frames[("sa", 10.0)]
     daylight = [frames[("sa", h)][0].rgb for h in _daylight(e.hours) if h != 10.0]
-    _, boundary = shadow_boundary(f10.rgb, daylight, f10.category, movers_px=_movers_px(f10.rgb.shape[1]))
+    _, boundary = shadow_boundary(
+        f10.rgb, daylight, f10.category, movers_px=_movers_px(f10.rgb.shape[1])
+    )
     if len(k10):
         xi = np.clip(np.round(k10).astype(int), 0, [f10.rgb.shape[1] - 1, f10.rgb.shape[0] - 1])
         edge = boundary[xi[:, 1], xi[:, 0]]
         hit15 = redetected(k10[edge], frames[("sa", 15.0)][1])
         img = f10.rgb.copy()
         img[boundary] = (0.5 * img[boundary] + [0, 0, 127]).astype(np.uint8)
-        img = _draw_points(img, k10[edge], [(0, 255, 0) if h else (255, 0, 0) for h in hit15], radius=4)
+        img = _draw_points(
+            img, k10[edge], [(0, 255, 0) if h else (255, 0, 0) for h in hit15], radius=4
+        )
     else:
         img = f10.rgb
     ax[1, 1].imshow(img)
     ax[1, 1].axis("off")
-    ax[1, 1].set_title("(e) 10:00: static shadow boundaries on the ground (blue, from pixels);\n"
-                       "their keypoints re-detected at 15:00: green yes, red no")
+    ax[1, 1].set_title(
+        "(e) 10:00: static shadow boundaries on the ground (blue, from pixels);\n"
+        "their keypoints re-detected at 15:00: green yes, red no"
+    )
     # (f) January frame and July frame side by side (trees bare, cars changed).
     fw, kw = frames[("w", 12.0)]
     fb, kb = frames[("b", 12.0)]
     ax[1, 2].imshow(np.vstack([fb.rgb, fw.rgb]))
     ax[1, 2].axis("off")
-    ax[1, 2].set_title(f"(f) top {e.meta['day_b']} 12:00 ({len(kb)} kp), bottom {e.meta['winter_day']} 12:00\n"
-                       f"({len(kw)} kp, snow level {e.meta['winter_snow_level']}): bare trees, other cars")
-    fig.suptitle(f"Emergent repeatability effects of the synthetic world (SIFT, static camera, "
-                 f"{e.meta['width']}x{e.meta['height']}, re-detection within {TOLERANCE_PX} px)", fontsize=14)
+    ax[1, 2].set_title(
+        f"(f) top {e.meta['day_b']} 12:00 ({len(kb)} kp), bottom {e.meta['winter_day']} 12:00\n"
+        f"({len(kw)} kp, snow level {e.meta['winter_snow_level']}): bare trees, other cars"
+    )
+    fig.suptitle(
+        f"Emergent repeatability effects of the synthetic world (SIFT, static camera, "
+        f"{e.meta['width']}x{e.meta['height']}, re-detection within {TOLERANCE_PX} px)",
+        fontsize=14,
+    )
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -493,7 +601,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out_dir.mkdir(parents=True, exist_ok=True)
     png = plot(effects, frames, args.out_dir / "emergent_effects.png")
     _write_json(args.out_dir / "emergent_effects.json", effects.to_json())
-    print(json.dumps({k: v for k, v in effects.to_json().items() if k not in ("dt_hours", "dt_rates")}, indent=1))
+    print(
+        json.dumps(
+            {k: v for k, v in effects.to_json().items() if k not in ("dt_hours", "dt_rates")},
+            indent=1,
+        )
+    )
     print(f"wrote {png}")
     return 0
 

@@ -9,7 +9,8 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   8 static webcams (``scene_00``..``scene_06`` train, ``scene_07`` test, as
   ``data_specs/webcam_clipart.json``), each in a real city with its own time zone, hung on
   a building and looking across the street at a facade that faces south or north (the
-  renderer's street runs east-west), each from its own height and oblique angle. Every scene is shot on M = 4 days spread over the
+  renderer's street runs east-west), each from its own height and oblique angle. Every
+  scene is shot on M = 4 days spread over the
   seasons (one per quarter, months differ between scenes), at the T = 21 slots 8:00-18:00
   every 30 min (a few seconds late, as a real webcam), plus a few off-slot frames (8:15,
   12:47...) that the reader must leave unassigned. Each frame has a sub-pixel-to-1-px
@@ -60,7 +61,8 @@ renders a synthetic stand-in with the same cameras, timestamps and cycles and wr
   list calls that slot Apr 21; the reader snaps Apr 4 to it), sunny (``REFERENCE_WEATHER``)
   and without foliage (leaf-out starts mid April, ``conditions.season_of_day``). Every
   traversal starts at a time drawn between ``CMU_HOURS`` (local), so the queries span the
-  hours of the day and their shadows differ from the map's. ``sparse/`` holds the reference traversal only: 3D points are SIFT
+  hours of the day and their shadows differ from the map's. ``sparse/`` holds the
+  reference traversal only: 3D points are SIFT
   keypoints of the reference images back-projected with the rendered depth (keypoints on
   depth edges skipped); a point's track holds every reference image where it projects
   inside, at the depth that image rendered there (visibility), within 1.5 px of one of its
@@ -267,8 +269,9 @@ def _scene(spec: SceneSpec):
 def _render(job: FrameJob):
     from rp_jax.sources.synthetic.render import render
 
-    return render(_scene(job.scene), _make_view(job), job.when, seed=job.frame_seed,
-                  weather=job.weather)
+    return render(
+        _scene(job.scene), _make_view(job), job.when, seed=job.frame_seed, weather=job.weather
+    )
 
 
 # Depth edges: a keypoint whose 3x3 neighbourhood spans more than this relative depth
@@ -834,7 +837,7 @@ def build_reference_model(
     from scipy.spatial import cKDTree
 
     data = []
-    for job, cam_id in reference:
+    for job, _cam_id in reference:
         with np.load(job.keypoints_path) as z:
             data.append({k: z[k] for k in z.files})
     trees = [cKDTree(d["xy"]) if len(d["xy"]) else None for d in data]
@@ -1108,8 +1111,12 @@ def discard_older_world(root: Path, marker: Mapping | None) -> bool:
     """
     if marker is None or marker.get("world", 1) == WORLD_VERSION:
         return False
-    log.warning("%s was rendered by synthetic world version %s; rendering version %s",
-                root, marker.get("world", 1), WORLD_VERSION)
+    log.warning(
+        "%s was rendered by synthetic world version %s; rendering version %s",
+        root,
+        marker.get("world", 1),
+        WORLD_VERSION,
+    )
     shutil.rmtree(root)
     return True
 
@@ -1164,9 +1171,14 @@ def generate(
     layouts.write_text_atomic(
         out_dir / SYNTHETIC_DIR / "generation.json",
         json.dumps(
-            {"preset": preset, "size": size, "seed": seed, "world": WORLD_VERSION,
-             "frames": len(the_plan.jobs)},
-            indent=2
+            {
+                "preset": preset,
+                "size": size,
+                "seed": seed,
+                "world": WORLD_VERSION,
+                "frames": len(the_plan.jobs),
+            },
+            indent=2,
         )
         + "\n",
     )

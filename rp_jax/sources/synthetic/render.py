@@ -29,7 +29,8 @@ import cv2
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic import camera_effects, conditions as condlib
+from rp_jax.sources.synthetic import camera_effects
+from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic import textures as tx
 from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState, dynamic_quads
 
@@ -93,8 +94,16 @@ class Frame:
     meta: dict
 
 
-def look_at(eye, target, *, width: int = 640, height: int = 480, fov_deg: float = 60.0,
-            up=(0.0, 0.0, 1.0), distortion=None) -> View:
+def look_at(
+    eye,
+    target,
+    *,
+    width: int = 640,
+    height: int = 480,
+    fov_deg: float = 60.0,
+    up=(0.0, 0.0, 1.0),
+    distortion=None,
+) -> View:
     """A level-ish pinhole view from ``eye`` looking at ``target`` (world frame).
 
     Args:
@@ -135,8 +144,10 @@ def project(view: View, X: np.ndarray) -> np.ndarray:
     if np.any(view.distortion):
         r2 = x * x + y * y
         radial = 1 + k1 * r2 + k2 * r2 * r2
-        x, y = (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
-                y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
+        x, y = (
+            x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y,
+        )
     K = view.K
     return np.stack([K[0, 0] * x + K[0, 1] * y + K[0, 2], K[1, 1] * y + K[1, 2]], -1)
 
@@ -163,11 +174,12 @@ def _clip_near(poly: np.ndarray, near: float = NEAR) -> np.ndarray:
 
 
 def _poly_region(poly_cam: np.ndarray, K: np.ndarray, W: int, H: int):
-    """ROI and coverage mask (uint8, 255 inside) of a camera-space polygon; None when not in the image."""
+    """ROI and coverage mask (uint8, 255 inside) of a camera-space polygon; None when not in
+    the image."""
     poly = _clip_near(poly_cam)
     if len(poly) < 3:
         return None
-    pix = (poly @ K.T)
+    pix = poly @ K.T
     pix = pix[:, :2] / pix[:, 2:3]
     x0, y0 = np.floor(pix.min(0)).astype(int)
     x1, y1 = np.ceil(pix.max(0)).astype(int) + 1
@@ -207,7 +219,9 @@ def _poly_area(pix: np.ndarray) -> float:
     return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
 
 
-def _warp(tex_pyr, o, u, v, K, R, t, roi, pix, alpha: bool, area: float | None = None) -> np.ndarray:
+def _warp(
+    tex_pyr, o, u, v, K, R, t, roi, pix, alpha: bool, area: float | None = None
+) -> np.ndarray:
     Wt, Ht = tex_pyr[0].shape[1], tex_pyr[0].shape[0]
     Hm = _texel_homography(o, u, v, Wt, Ht, K, R, t)
     if len(pix) == 4:  # unclipped: the mean texel footprint of the whole quad
@@ -218,8 +232,13 @@ def _warp(tex_pyr, o, u, v, K, R, t, roi, pix, alpha: bool, area: float | None =
         level = _choose_level(Hm, pix.mean(0), len(tex_pyr))
     x0, y0, x1, y1 = roi
     M = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]]) @ Hm @ _level_matrix(level)
-    return cv2.warpPerspective(tex_pyr[level], M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_CONSTANT if alpha else cv2.BORDER_REPLICATE)
+    return cv2.warpPerspective(
+        tex_pyr[level],
+        M,
+        (x1 - x0, y1 - y0),
+        flags=cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT if alpha else cv2.BORDER_REPLICATE,
+    )
 
 
 # ---------------------------------------------------------------- rasterisation
@@ -249,13 +268,15 @@ def _visible_strips(m: np.ndarray) -> list[tuple[int, int, int, int]]:
         return [(0, 0, w, h)]
     rects = []
     for r0 in range(0, h, _STRIP_ROWS):
-        rx, ry, rw, rh = cv2.boundingRect(m[r0:r0 + _STRIP_ROWS])
+        rx, ry, rw, rh = cv2.boundingRect(m[r0 : r0 + _STRIP_ROWS])
         if rw and rh:
             rects.append((rx, r0 + ry, rw, rh))
     return rects
 
 
-def _flutter(warped: np.ndarray, amp_px: float, step_px: float, rng: np.random.Generator) -> np.ndarray:
+def _flutter(
+    warped: np.ndarray, amp_px: float, step_px: float, rng: np.random.Generator
+) -> np.ndarray:
     """``warped`` (RGBA) resampled through a smooth random displacement of std ``amp_px``
     pixels, correlated over ``step_px`` pixels (bicubic upsampling of a coarse normal grid)."""
     h, w = warped.shape[:2]
@@ -264,14 +285,30 @@ def _flutter(warped: np.ndarray, amp_px: float, step_px: float, rng: np.random.G
     step = max(step_px, 2.0)
     gh, gw = int(np.ceil(h / step)) + 2, int(np.ceil(w / step)) + 2
     grid = rng.normal(0.0, amp_px, (gh, gw, 2)).astype(np.float32)
-    field = cv2.resize(grid, (int(gw * step), int(gh * step)), interpolation=cv2.INTER_CUBIC)[:h, :w]
+    field = cv2.resize(grid, (int(gw * step), int(gh * step)), interpolation=cv2.INTER_CUBIC)[
+        :h, :w
+    ]
     xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    return cv2.remap(warped, xs + field[..., 0], ys + field[..., 1], cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_CONSTANT)
+    return cv2.remap(
+        warped,
+        xs + field[..., 0],
+        ys + field[..., 1],
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+    )
 
 
-def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: int, H: int,
-               flutter: tuple[int, float] | None = None) -> _GBuffer:
+def _rasterize(
+    quads: QuadSet,
+    scene: Scene,
+    state: TextureState,
+    K,
+    R,
+    t,
+    W: int,
+    H: int,
+    flutter: tuple[int, float] | None = None,
+) -> _GBuffer:
     """Z-buffered rasterisation of textured quads, front to back.
 
     Quads are drawn nearest first, so the depth test runs before texturing and a quad's
@@ -290,11 +327,18 @@ def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: in
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
     zc = cam[..., 2]
     xc, yc = cam[..., 0], cam[..., 1]
-    out = (np.all(zc < NEAR, 1) | np.all(xc < zc * (-0.5 - cx) / fx, 1) | np.all(xc > zc * (W - 0.5 - cx) / fx, 1)
-           | np.all(yc < zc * (-0.5 - cy) / fy, 1) | np.all(yc > zc * (H - 0.5 - cy) / fy, 1)
-           | np.all(zc > 400.0, 1))
+    out = (
+        np.all(zc < NEAR, 1)
+        | np.all(xc < zc * (-0.5 - cx) / fx, 1)
+        | np.all(xc > zc * (W - 0.5 - cx) / fx, 1)
+        | np.all(yc < zc * (-0.5 - cy) / fy, 1)
+        | np.all(yc > zc * (H - 0.5 - cy) / fy, 1)
+        | np.all(zc > 400.0, 1)
+    )
     visible = np.flatnonzero(~out & (facing | two_sided))
-    visible = visible[np.argsort(np.maximum(zc[visible].min(1), NEAR), kind="stable")]  # front to back
+    visible = visible[
+        np.argsort(np.maximum(zc[visible].min(1), NEAR), kind="stable")
+    ]  # front to back
     # Plane of each quad in camera space: (R n) . X_c = n . o + (R n) . t.
     n_c = nrm @ R.T
     d_c = np.einsum("ij,ij->i", nrm, o) + n_c @ t
@@ -347,7 +391,7 @@ def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: in
         bx, by, bw, bh = cv2.boundingRect(m)
         if bw == 0 or bh == 0:
             continue  # hidden behind nearer quads
-        m, iz = m[by:by + bh, bx:bx + bw], iz[by:by + bh, bx:bx + bw]
+        m, iz = m[by : by + bh, bx : bx + bw], iz[by : by + bh, bx : bx + bw]
         x0, y0 = x0 + bx, y0 + by
         alpha = bool(two_sided[i])
         pyr = scene.textures.pyramid(quads.tex[i], state)
@@ -356,18 +400,23 @@ def _rasterize(quads: QuadSet, scene: Scene, state: TextureState, K, R, t, W: in
         # continuous across strips.
         moving = flutter is not None and quads.material[i] == Material.FOLIAGE
         for rx, ry, rw, rh in [(0, 0, bw, bh)] if moving else _visible_strips(m):
-            sm, siz = m[ry:ry + rh, rx:rx + rw], iz[ry:ry + rh, rx:rx + rw]
+            sm, siz = m[ry : ry + rh, rx : rx + rw], iz[ry : ry + rh, rx : rx + rw]
             sx0, sy0 = x0 + rx, y0 + ry
-            warped = _warp(pyr, o[i], u[i], v[i], K, R, t, (sx0, sy0, sx0 + rw, sy0 + rh), pix, alpha, area)
+            warped = _warp(
+                pyr, o[i], u[i], v[i], K, R, t, (sx0, sy0, sx0 + rw, sy0 + rh), pix, alpha, area
+            )
             if moving:
                 z = max(float(zc[i].mean()), NEAR)
                 rng = np.random.default_rng((scene.seed, int(i), flutter[0]))
-                warped = _flutter(warped, flutter[1] * K[0, 0] / z, FOLIAGE_CLUSTER_M * K[0, 0] / z, rng)
+                warped = _flutter(
+                    warped, flutter[1] * K[0, 0] / z, FOLIAGE_CLUSTER_M * K[0, 0] / z, rng
+                )
             if alpha:
-                sm = sm & np.greater(warped[..., 3], 127).view(np.uint8)  # (numpy: cv2 reads tiny arrays as scalars)
-            cv2.copyTo(siz, sm, zb[sy0:sy0 + rh, sx0:sx0 + rw])
-            cv2.copyTo(warped, sm, gb[sy0:sy0 + rh, sx0:sx0 + rw])
-            cv2.copyTo(np.full((rh, rw), i, np.int32), sm, qid[sy0:sy0 + rh, sx0:sx0 + rw])
+                # (numpy: cv2 reads tiny arrays as scalars)
+                sm = sm & np.greater(warped[..., 3], 127).view(np.uint8)
+            cv2.copyTo(siz, sm, zb[sy0 : sy0 + rh, sx0 : sx0 + rw])
+            cv2.copyTo(warped, sm, gb[sy0 : sy0 + rh, sx0 : sx0 + rw])
+            cv2.copyTo(np.full((rh, rw), i, np.int32), sm, qid[sy0 : sy0 + rh, sx0 : sx0 + rw])
         drawn[i] = True
         rois[i] = (x0, y0, x0 + bw, y0 + bh)
     return _GBuffer(gb, zb, qid, plane, drawn, rois)
@@ -392,12 +441,25 @@ def _object_shadow(points: np.ndarray, sun: np.ndarray, boxes: np.ndarray) -> np
         t1 = (boxes[None, :, 1, :] - points[:, None, :]) * inv
     tmin = np.minimum(t0, t1).max(-1)
     tmax = np.maximum(t0, t1).min(-1)
-    hit = (tmax >= np.maximum(tmin, 1e-3))
+    hit = tmax >= np.maximum(tmin, 1e-3)
     return hit.any(1).astype(np.float32)
 
 
-def _cast_shadows(gbuf: _GBuffer, qid: np.ndarray, quads: QuadSet, scene: Scene, state: TextureState,
-                  sun: np.ndarray, boxes: np.ndarray, alpha_idx: np.ndarray, K, R, t, W: int, H: int) -> np.ndarray:
+def _cast_shadows(
+    gbuf: _GBuffer,
+    qid: np.ndarray,
+    quads: QuadSet,
+    scene: Scene,
+    state: TextureState,
+    sun: np.ndarray,
+    boxes: np.ndarray,
+    alpha_idx: np.ndarray,
+    K,
+    R,
+    t,
+    W: int,
+    H: int,
+) -> np.ndarray:
     """uint8 (H, W) = 1 where a receiving plane's pixel lies in a cast shadow.
 
     ``qid`` is ``gbuf.qid`` (int32, the quad seen at each pixel).
@@ -451,9 +513,10 @@ def _cast_shadows(gbuf: _GBuffer, qid: np.ndarray, quads: QuadSet, scene: Scene,
         if len(alpha_idx):
             lam = (a_oc @ n - d) / ns  # (A, 3)
             pr = a_oc - lam[..., None] * sun  # projected origin, origin + u, origin + v
-            quad = np.stack([pr[:, 0], pr[:, 1], pr[:, 1] + pr[:, 2] - pr[:, 0], pr[:, 2]], 1)  # (A, 4, 3)
+            # (A, 4, 3)
+            quad = np.stack([pr[:, 0], pr[:, 1], pr[:, 1] + pr[:, 2] - pr[:, 0], pr[:, 2]], 1)
             q2 = np.stack([quad @ e1, quad @ e2], -1)  # (A, 4, 2)
-            ok = (np.all(lam >= -1e-6, 1) & np.all(q2.max(1) >= elo, 1) & np.all(q2.min(1) <= ehi, 1))
+            ok = np.all(lam >= -1e-6, 1) & np.all(q2.max(1) >= elo, 1) & np.all(q2.min(1) <= ehi, 1)
             for k in np.flatnonzero(ok):
                 reg = _poly_region(quad[k] @ R.T + t, Kroi, rx1 - rx0, ry1 - ry0)
                 if reg is None:
@@ -461,11 +524,15 @@ def _cast_shadows(gbuf: _GBuffer, qid: np.ndarray, quads: QuadSet, scene: Scene,
                 roi, mask, pix = reg
                 o2 = pr[k, 0]
                 pyr = scene.textures.pyramid(quads.tex[alpha_idx[k]], state)
-                warped = _warp(pyr, o2, pr[k, 1] - o2, pr[k, 2] - o2, Kroi, R, t, roi, pix, alpha=True)
+                warped = _warp(
+                    pyr, o2, pr[k, 1] - o2, pr[k, 2] - o2, Kroi, R, t, roi, pix, alpha=True
+                )
                 x0, y0, x1, y1 = roi
                 tmp[y0:y1, x0:x1] |= mask & np.greater(warped[..., 3], 127).view(np.uint8)
         lo, hi = int(members.min()), int(members.max())
-        if hi - lo + 1 == len(members) and min(tmp.shape) > 1:  # a contiguous id range (ground, walls)
+        if (
+            hi - lo + 1 == len(members) and min(tmp.shape) > 1
+        ):  # a contiguous id range (ground, walls)
             sel = cv2.inRange(qid[ry0:ry1, rx0:rx1], lo, hi) & 1
         else:
             in_plane[:] = 0
@@ -500,7 +567,11 @@ def _cloud_density(scene_seed: int, qx: np.ndarray, qy: np.ndarray, cover: float
     pad = (-flat) % 1024  # remap wants 2-D maps under 32767 rows
     mx = np.pad(mx.ravel(), (0, pad)).reshape(-1, 1024)
     my = np.pad(my.ravel(), (0, pad)).reshape(-1, 1024)
-    val = cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT).ravel()[:flat].reshape(shape)
+    val = (
+        cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        .ravel()[:flat]
+        .reshape(shape)
+    )
     return np.clip((val - (1.0 - cover)) / 0.12, 0.0, 1.0)
 
 
@@ -563,7 +634,8 @@ def _canvas(kbytes: bytes, dbytes: bytes, width: int, height: int):
 
 
 def _world_points(Kc_inv: np.ndarray, R: np.ndarray, t: np.ndarray, depth: np.ndarray, step: int):
-    """World points (H', W', 3) float32 seen at every ``step``-th pixel, and where they are finite."""
+    """World points (H', W', 3) float32 seen at every ``step``-th pixel, and where they are
+    finite."""
     d = depth[::step, ::step]
     uu = np.arange(0, depth.shape[1], step, dtype=np.float32)[None, :]
     vv = np.arange(0, depth.shape[0], step, dtype=np.float32)[:, None]
@@ -581,15 +653,18 @@ def _srgb_to_linear_lut() -> np.ndarray:
 _LIN = _srgb_to_linear_lut()
 
 
-def _window_threshold(n_owners: int, scene_seed: int, day: int, hour: float, prob: float) -> np.ndarray:
+def _window_threshold(
+    n_owners: int, scene_seed: int, day: int, hour: float, prob: float
+) -> np.ndarray:
     """Per building, the aux value at or above which a window is lit (see ``textures._window``)."""
     rng = np.random.default_rng([scene_seed, 41, day, int(hour * 2)])
     p = np.clip(prob * rng.uniform(0.6, 1.4, n_owners), 0.0, 1.0)
     return (255.0 - 127.0 * p).astype(np.float32)
 
 
-def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
-           weather: str | None = None) -> Frame:
+def render(
+    scene: Scene, view: View, when: dt.datetime, *, seed: int = 0, weather: str | None = None
+) -> Frame:
     """Renders the world as a camera records it at an instant.
 
     Args:
@@ -605,17 +680,27 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
       ``Frame`` with rgb, depth, category and meta.
     """
     cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when, weather)
-    state = TextureState(season=cond.grass, snow=cond.snow, snow_pattern=cond.snow_pattern, foliage=cond.foliage,
-                         autumn=cond.autumn)
+    state = TextureState(
+        season=cond.grass,
+        snow=cond.snow,
+        snow_pattern=cond.snow_pattern,
+        foliage=cond.foliage,
+        autumn=cond.autumn,
+    )
     dyn, dyn_boxes, dyn_alpha = dynamic_quads(scene, when)
     quads = QuadSet.concat([scene.static, dyn])
     N = quads.n
-    alpha_idx = np.concatenate([scene.alpha_casters, scene.static.n + np.asarray(dyn_alpha, np.int64)]).astype(int)
-    boxes = np.concatenate([scene.buildings, scene.furniture_boxes,
-                            np.array(dyn_boxes, np.float64).reshape(-1, 2, 3)])
+    alpha_idx = np.concatenate(
+        [scene.alpha_casters, scene.static.n + np.asarray(dyn_alpha, np.int64)]
+    ).astype(int)
+    boxes = np.concatenate(
+        [scene.buildings, scene.furniture_boxes, np.array(dyn_boxes, np.float64).reshape(-1, 2, 3)]
+    )
     distorted = bool(np.any(view.distortion))
     if distorted:
-        Kc, Wc, Hc, mapx, mapy = _canvas(view.K.tobytes(), view.distortion.tobytes(), view.width, view.height)
+        Kc, Wc, Hc, mapx, mapy = _canvas(
+            view.K.tobytes(), view.distortion.tobytes(), view.width, view.height
+        )
     else:
         Kc, Wc, Hc = view.K, view.width, view.height
     R, t = view.R, view.t
@@ -640,18 +725,21 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
     wet = np.ones(N)
     if cond.wet:
         wet = np.where(mat == Material.GROUND, 0.6, np.where(mat == Material.CAR, 1.0, 0.85))
-    shadow = _cast_shadows(gbuf, gbuf.qid, quads, scene, state, sun, boxes, alpha_idx, Kss, R, t, W2, H2)
+    shadow = _cast_shadows(
+        gbuf, gbuf.qid, quads, scene, state, sun, boxes, alpha_idx, Kss, R, t, W2, H2
+    )
     # One gather gives every subsample's light (direct * sun + ambient * sky, RGB) and sky
     # flag: rows 0..N lit, rows N+1.. the same quads in a cast shadow.
     direct_q = np.append(ndl * wet, 0.0)
     amb_q = np.append(amb * wet, 0.0)
     table = np.zeros((2 * (N + 1), 4), np.float32)
-    table[:N + 1, :3] = direct_q[:, None] * cond.sun_rgb + amb_q[:, None] * cond.sky_rgb
-    table[N + 1:, :3] = amb_q[:, None] * cond.sky_rgb
+    table[: N + 1, :3] = direct_q[:, None] * cond.sun_rgb + amb_q[:, None] * cond.sky_rgb
+    table[N + 1 :, :3] = amb_q[:, None] * cond.sky_rgb
     table[N, 3] = table[2 * N + 1, 3] = 1.0
     idx = gbuf.qid.copy()
     cv2.add(idx, N + 1, dst=idx, mask=shadow)
-    idx = idx.astype(np.intp)  # np.take is several times faster with native indices and 16-byte elements
+    # np.take is several times faster with native indices and 16-byte elements
+    idx = idx.astype(np.intp)
     terms_ss = np.take(table.view(np.complex128).ravel(), idx).view(np.float32).reshape(H2, W2, 4)
     clouds = cond.weather == "partly_cloudy" and sun[2] > 0
     if clouds:  # cloud shadows dim the direct part only: keep it apart
@@ -666,8 +754,13 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
         fac = mat_px == Material.FACADE
         if fac.any():
             owners = np.append(np.maximum(quads.owner, 0), 0)
-            thr = _window_threshold(int(owners.max()) + 1, scene.seed, when.date().toordinal(), cond.local_hour,
-                                    cond.window_lit_prob)
+            thr = _window_threshold(
+                int(owners.max()) + 1,
+                scene.seed,
+                when.date().toordinal(),
+                cond.local_hour,
+                cond.window_lit_prob,
+            )
             lit = fac & (aux >= np.take(thr, np.take(owners, qid)))
             emis_ss[lit] = 0.04 + 0.08 * (aux[lit] - 128) / 127.0
         if cond.lamps_on:
@@ -677,29 +770,39 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
             emis_ss[car] = 2.5 * aux[car] / 255.0
     # Down to the output resolution (box filter of the 2x render).
     size = (Wc, Hc)
-    albedo = cv2.resize(gbuf.albedo, size, interpolation=cv2.INTER_AREA)  # 4 channels: contiguous, fast
+    # 4 channels: contiguous, fast
+    albedo = cv2.resize(gbuf.albedo, size, interpolation=cv2.INTER_AREA)
     albedo = cv2.cvtColor(albedo, cv2.COLOR_RGBA2RGB)
     albedo = cv2.GaussianBlur(albedo, (0, 0), 0.45)  # lens point-spread function
     alb = cv2.LUT(albedo, _LIN)  # sRGB -> linear, float32
-    terms = cv2.resize(terms_ss, size, interpolation=cv2.INTER_AREA)  # (H, W, 4): light RGB, sky fraction
+    # (H, W, 4): light RGB, sky fraction
+    terms = cv2.resize(terms_ss, size, interpolation=cv2.INTER_AREA)
     del terms_ss
     skyfrac = np.ascontiguousarray(terms[..., 3])
     light = cv2.cvtColor(terms, cv2.COLOR_RGBA2RGB)
     # Full-resolution geometry: depth from the plane of the surface seen at each pixel centre.
-    qfull = gbuf.qid[SS // 2::SS, SS // 2::SS].astype(np.intp)
+    qfull = gbuf.qid[SS // 2 :: SS, SS // 2 :: SS].astype(np.intp)
     Kc_inv = np.linalg.inv(Kc)
     coef = np.vstack([gbuf.plane @ Kc_inv, np.zeros((1, 3))]).astype(np.float32)
     uu = np.arange(Wc, dtype=np.float32)[None, :]
     vv = np.arange(Hc, dtype=np.float32)[:, None]
-    iz = np.take(coef[:, 0], qfull) * uu + np.take(coef[:, 1], qfull) * vv + np.take(coef[:, 2], qfull)
+    iz = (
+        np.take(coef[:, 0], qfull) * uu
+        + np.take(coef[:, 1], qfull) * vv
+        + np.take(coef[:, 2], qfull)
+    )
     with np.errstate(divide="ignore"):
         depth = np.where(qfull == N, np.inf, 1.0 / np.maximum(iz, 1e-12)).astype(np.float32)
     if clouds:
         # Cloud shadows are soft (blurred over ~2 px): trace them on every other pixel.
         Xh, _ = _world_points(Kc_inv, R, t, depth, 2)
         s = (CLOUD_ALTITUDE - Xh[..., 2]) / max(sun[2], 0.05)
-        dens = _cloud_density(scene.seed, Xh[..., 0] + sun[0] * s + cond.cloud_offset[0],
-                              Xh[..., 1] + sun[1] * s + cond.cloud_offset[1], cond.cloud_cover)
+        dens = _cloud_density(
+            scene.seed,
+            Xh[..., 0] + sun[0] * s + cond.cloud_offset[0],
+            Xh[..., 1] + sun[1] * s + cond.cloud_offset[1],
+            cond.cloud_cover,
+        )
         dens = cv2.GaussianBlur(dens.astype(np.float32), (0, 0), 1.0)
         dens = cv2.resize(dens, size, interpolation=cv2.INTER_LINEAR)
         direct = cv2.resize(direct_ss, size, interpolation=cv2.INTER_AREA)
@@ -727,7 +830,9 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
     if len(rows):
         # The sky is smooth: evaluate it on every other pixel and interpolate.
         r0, r1 = rows[0], rows[-1] + 1
-        su, sv = np.meshgrid(np.arange(0, Wc, 2, dtype=np.float32), np.arange(r0, r1, 2, dtype=np.float32))
+        su, sv = np.meshgrid(
+            np.arange(0, Wc, 2, dtype=np.float32), np.arange(r0, r1, 2, dtype=np.float32)
+        )
         sub = np.stack([su, sv, np.ones_like(su)], -1) @ (Kc_inv.T @ R).astype(np.float32)
         sub /= np.linalg.norm(sub, axis=-1, keepdims=True)
         sky = _sky(cond, sub.reshape(-1, 3), C, scene.seed).reshape(sub.shape)
@@ -736,15 +841,26 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
     cat_q = np.append(quads.category, categories.SKY).astype(np.uint8)
     if distorted:
         rad = cv2.remap(rad, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        qd = cv2.remap(gbuf.qid[SS // 2::SS, SS // 2::SS], mapx, mapy, cv2.INTER_NEAREST,
-                       borderMode=cv2.BORDER_REPLICATE).astype(np.intp)
-        izd = np.take(coef[:, 0], qd) * mapx + np.take(coef[:, 1], qd) * mapy + np.take(coef[:, 2], qd)
+        qd = cv2.remap(
+            gbuf.qid[SS // 2 :: SS, SS // 2 :: SS],
+            mapx,
+            mapy,
+            cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_REPLICATE,
+        ).astype(np.intp)
+        izd = (
+            np.take(coef[:, 0], qd) * mapx
+            + np.take(coef[:, 1], qd) * mapy
+            + np.take(coef[:, 2], qd)
+        )
         with np.errstate(divide="ignore"):
             depth = np.where(qd == N, np.inf, 1.0 / np.maximum(izd, 1e-12)).astype(np.float32)
         category = np.take(cat_q, qd)
     else:
         category = np.take(cat_q, qfull)
-    rng = np.random.default_rng([seed & 0xFFFFFFFF, int(when.timestamp() * 1000) & 0xFFFFFFFF, scene.seed & 0xFFFF])
+    rng = np.random.default_rng(
+        [seed & 0xFFFFFFFF, int(when.timestamp() * 1000) & 0xFFFFFFFF, scene.seed & 0xFFFF]
+    )
     rgb, cam_meta = camera_effects.expose(np.ascontiguousarray(rad, np.float32), view.K, rng)
     meta = cond.as_meta()
     meta.update(cam_meta)
@@ -755,7 +871,9 @@ def render(scene: Scene, view: View, when: dt.datetime, *, seed: int = 0,
 # ---------------------------------------------------------------- contact sheets
 
 
-def contact_sheet(frames: list, labels: list[str], *, columns: int | None = None, width: int = 320) -> np.ndarray:
+def contact_sheet(
+    frames: list, labels: list[str], *, columns: int | None = None, width: int = 320
+) -> np.ndarray:
     """Tiles frames (``Frame`` or RGB arrays) with a caption under each into one RGB image.
 
     Args:
@@ -776,11 +894,13 @@ def contact_sheet(frames: list, labels: list[str], *, columns: int | None = None
         h = int(round(img.shape[0] * width / img.shape[1]))
         tile = np.full((h + 22, width, 3), 255, np.uint8)
         tile[:h] = cv2.resize(img, (width, h), interpolation=cv2.INTER_AREA)
-        cv2.putText(tile, str(label), (4, h + 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(
+            tile, str(label), (4, h + 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA
+        )
         tiles.append(tile)
     th = max(t.shape[0] for t in tiles)
     tiles = [np.pad(t, ((0, th - t.shape[0]), (0, 0), (0, 0)), constant_values=255) for t in tiles]
     while len(tiles) % columns:
         tiles.append(np.full_like(tiles[0], 255))
-    rows = [np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)]
+    rows = [np.hstack(tiles[i : i + columns]) for i in range(0, len(tiles), columns)]
     return np.vstack(rows)

@@ -25,7 +25,7 @@ import dataclasses
 import datetime as dt
 import enum
 from collections import OrderedDict
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -97,19 +97,44 @@ class QuadSet:
         return nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
 
     @staticmethod
-    def empty() -> "QuadSet":
+    def empty() -> QuadSet:
         z3 = np.zeros((0, 3))
-        return QuadSet(z3, z3, z3, [], np.zeros(0, np.uint8), np.zeros(0, np.int8), np.zeros(0, np.int32),
-                       z3, np.zeros(0, np.int32), np.zeros(0, np.float32))
+        return QuadSet(
+            z3,
+            z3,
+            z3,
+            [],
+            np.zeros(0, np.uint8),
+            np.zeros(0, np.int8),
+            np.zeros(0, np.int32),
+            z3,
+            np.zeros(0, np.int32),
+            np.zeros(0, np.float32),
+        )
 
     @staticmethod
-    def concat(sets: list["QuadSet"]) -> "QuadSet":
+    def concat(sets: list[QuadSet]) -> QuadSet:
         sets = [s for s in sets if s.n]
         if not sets:
             return QuadSet.empty()
         return QuadSet(
-            *(np.concatenate([getattr(s, f) for s in sets]) if f != "tex" else sum((s.tex for s in sets), [])
-              for f in ("origin", "u", "v", "tex", "category", "material", "receiver", "shadow_pt", "owner", "emit"))
+            *(
+                np.concatenate([getattr(s, f) for s in sets])
+                if f != "tex"
+                else sum((s.tex for s in sets), [])
+                for f in (
+                    "origin",
+                    "u",
+                    "v",
+                    "tex",
+                    "category",
+                    "material",
+                    "receiver",
+                    "shadow_pt",
+                    "owner",
+                    "emit",
+                )
+            )
         )
 
 
@@ -117,7 +142,9 @@ class _QuadBuilder:
     def __init__(self):
         self.rows = []
 
-    def add(self, origin, u, v, tex, category, material, receiver=-1, shadow_pt=None, owner=-1, emit=0.0):
+    def add(
+        self, origin, u, v, tex, category, material, receiver=-1, shadow_pt=None, owner=-1, emit=0.0
+    ):
         origin, u, v = (np.asarray(a, np.float64) for a in (origin, u, v))
         sp = origin + 0.5 * u + 0.5 * v if shadow_pt is None else np.asarray(shadow_pt, np.float64)
         self.rows.append((origin, u, v, tex, category, material, receiver, sp, owner, emit))
@@ -126,18 +153,41 @@ class _QuadBuilder:
         if not self.rows:
             return QuadSet.empty()
         cols = list(zip(*self.rows))
-        return QuadSet(np.array(cols[0]), np.array(cols[1]), np.array(cols[2]), list(cols[3]),
-                       np.array(cols[4], np.uint8), np.array(cols[5], np.int8), np.array(cols[6], np.int32),
-                       np.array(cols[7]), np.array(cols[8], np.int32), np.array(cols[9], np.float32))
+        return QuadSet(
+            np.array(cols[0]),
+            np.array(cols[1]),
+            np.array(cols[2]),
+            list(cols[3]),
+            np.array(cols[4], np.uint8),
+            np.array(cols[5], np.int8),
+            np.array(cols[6], np.int32),
+            np.array(cols[7]),
+            np.array(cols[8], np.int32),
+            np.array(cols[9], np.float32),
+        )
 
 
-_FACE_NORMAL = {"+x": np.array([1.0, 0, 0]), "-x": np.array([-1.0, 0, 0]), "+y": np.array([0, 1.0, 0]),
-                "-y": np.array([0, -1.0, 0]), "+z": np.array([0, 0, 1.0])}
+_FACE_NORMAL = {
+    "+x": np.array([1.0, 0, 0]),
+    "-x": np.array([-1.0, 0, 0]),
+    "+y": np.array([0, 1.0, 0]),
+    "-y": np.array([0, -1.0, 0]),
+    "+z": np.array([0, 0, 1.0]),
+}
 
 
-def box_quads(qb: _QuadBuilder, lo, hi, tex: dict, category: int, material: int = Material.WALL,
-              receivers: dict | None = None, owner: int = -1, emit: dict | None = None,
-              faces=("+x", "-x", "+y", "-y", "+z")) -> None:
+def box_quads(
+    qb: _QuadBuilder,
+    lo,
+    hi,
+    tex: dict,
+    category: int,
+    material: int = Material.WALL,
+    receivers: dict | None = None,
+    owner: int = -1,
+    emit: dict | None = None,
+    faces=("+x", "-x", "+y", "-y", "+z"),
+) -> None:
     """Adds the outward faces of an axis-aligned box [lo, hi] (no bottom face).
 
     Args:
@@ -166,7 +216,15 @@ def box_quads(qb: _QuadBuilder, lo, hi, tex: dict, category: int, material: int 
     for f in faces:
         o, u, v = geo[f]
         key = tex.get(f, tex.get("*"))
-        mat = material if not (f == "+z" and material in (Material.FACADE, Material.WALL) and category == categories.BUILDING) else Material.ROOF
+        mat = (
+            material
+            if not (
+                f == "+z"
+                and material in (Material.FACADE, Material.WALL)
+                and category == categories.BUILDING
+            )
+            else Material.ROOF
+        )
         o, u, v = (np.asarray(a, np.float64) for a in (o, u, v))
         sp = o + 0.5 * u + 0.5 * v + 0.05 * _FACE_NORMAL[f]  # just outside the face
         qb.add(o, u, v, key, category, mat, receivers.get(f, -1), sp, owner, emit.get(f, 0.0))
@@ -212,21 +270,37 @@ class TextureCache:
         return pyr
 
 
-def _tree_tex(structure_seed: int, height: float, radius: float, foliage: float, autumn: float, snow: int,
-              _memo: dict = {}) -> np.ndarray:  # noqa: B006 - a deliberate process-wide memo
+def _tree_tex(
+    structure_seed: int,
+    height: float,
+    radius: float,
+    foliage: float,
+    autumn: float,
+    snow: int,
+    _memo: dict = {},  # noqa: B006 - a deliberate process-wide memo
+) -> np.ndarray:
     key = (structure_seed, height, radius)
     if key not in _memo:
         _memo[key] = tx.tree_structure(structure_seed, height, radius)
     return tx.tree_texture(_memo[key], foliage, autumn, snow)
 
 
-def _plain(seed: int, colour, w: int = 16, h: int = 64, aux: int = 0, bands: int = 0, snow: int = 0):
+def _plain(
+    seed: int, colour, w: int = 16, h: int = 64, aux: int = 0, bands: int = 0, snow: int = 0
+):
     del snow
     return tx.plain_texture(seed, colour, w, h, aux, bands)
 
 
-def _car_face(seed: int, face: str, length: float, width: float, body_h: float, cabin_h: float,
-              _memo: OrderedDict = OrderedDict()) -> np.ndarray:  # noqa: B006
+def _car_face(
+    seed: int,
+    face: str,
+    length: float,
+    width: float,
+    body_h: float,
+    cabin_h: float,
+    _memo: OrderedDict = OrderedDict(),  # noqa: B006
+) -> np.ndarray:
     key = (seed, length, width, body_h, cabin_h)
     if key not in _memo:
         _memo[key] = tx.car_textures(seed, length, width, body_h, cabin_h)
@@ -295,24 +369,63 @@ class Scene:
         return np.stack([np.linspace(0, self.length_m, n), np.zeros(n), np.zeros(n)], -1)
 
 
-def _add_tree(qb: _QuadBuilder, tc: TextureCache, x: float, y: float, height: float, radius: float, tseed: int,
-              owner: int) -> list[int]:
+def _add_tree(
+    qb: _QuadBuilder,
+    tc: TextureCache,
+    x: float,
+    y: float,
+    height: float,
+    radius: float,
+    tseed: int,
+    owner: int,
+) -> list[int]:
     key = f"tree:{tseed}:{height:.2f}:{radius:.2f}"
-    tc.register(key, _tree_tex, dict(structure_seed=tseed, height=height, radius=radius),
-                depends=("foliage", "autumn", "snow"))
+    tc.register(
+        key,
+        _tree_tex,
+        dict(structure_seed=tseed, height=height, radius=radius),
+        depends=("foliage", "autumn", "snow"),
+    )
     w = 2 * radius + 0.4
     centre = np.array([x, y, height * 0.6])
     start = len(qb.rows)
-    qb.add((x - w / 2, y, height), (w, 0, 0), (0, 0, -height), key, categories.VEGETATION, Material.FOLIAGE,
-           -1, centre, owner)
-    qb.add((x, y - w / 2, height), (0, w, 0), (0, 0, -height), key, categories.VEGETATION, Material.FOLIAGE,
-           -1, centre, owner)
+    qb.add(
+        (x - w / 2, y, height),
+        (w, 0, 0),
+        (0, 0, -height),
+        key,
+        categories.VEGETATION,
+        Material.FOLIAGE,
+        -1,
+        centre,
+        owner,
+    )
+    qb.add(
+        (x, y - w / 2, height),
+        (0, w, 0),
+        (0, 0, -height),
+        key,
+        categories.VEGETATION,
+        Material.FOLIAGE,
+        -1,
+        centre,
+        owner,
+    )
     return [start, start + 1]
 
 
-def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, latitude: float = 40.44,
-                longitude: float = -79.99, vegetation: float = 0.5, lanes: int = 2,
-                building_height: tuple[float, float] | None = None, **kwargs) -> Scene:
+def build_scene(
+    seed: int,
+    *,
+    kind: str = "street",
+    length_m: float = 60.0,
+    latitude: float = 40.44,
+    longitude: float = -79.99,
+    vegetation: float = 0.5,
+    lanes: int = 2,
+    building_height: tuple[float, float] | None = None,
+    **kwargs,
+) -> Scene:
     """Builds a deterministic synthetic street.
 
     Args:
@@ -364,26 +477,77 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
         for name, ya, yb, texel in strips:
             key = f"ground:{name}:{i}"
             if name == "road":
-                tc.register(key, tx.ground_texture, dict(seed=int(seed * 7919 + i), kind="road", length_m=GROUND_TILE_M,
-                                                         width_m=yb - ya, lanes=lanes + 2, crosswalk=i == crosswalk_tile,
-                                                         texel=texel), depends=("season", "snow", "snow_pattern"))
+                tc.register(
+                    key,
+                    tx.ground_texture,
+                    dict(
+                        seed=int(seed * 7919 + i),
+                        kind="road",
+                        length_m=GROUND_TILE_M,
+                        width_m=yb - ya,
+                        lanes=lanes + 2,
+                        crosswalk=i == crosswalk_tile,
+                        texel=texel,
+                    ),
+                    depends=("season", "snow", "snow_pattern"),
+                )
             else:
-                gkind = "sidewalk" if name.startswith("sidewalk") else ("grass" if veg >= 0.3 else "sidewalk")
-                tc.register(key, tx.ground_texture, dict(seed=int(seed * 7919 + i * 13 + len(name)), kind=gkind,
-                                                         length_m=GROUND_TILE_M, width_m=yb - ya, texel=texel),
-                            depends=("season", "snow", "snow_pattern"))
+                gkind = (
+                    "sidewalk"
+                    if name.startswith("sidewalk")
+                    else ("grass" if veg >= 0.3 else "sidewalk")
+                )
+                tc.register(
+                    key,
+                    tx.ground_texture,
+                    dict(
+                        seed=int(seed * 7919 + i * 13 + len(name)),
+                        kind=gkind,
+                        length_m=GROUND_TILE_M,
+                        width_m=yb - ya,
+                        texel=texel,
+                    ),
+                    depends=("season", "snow", "snow_pattern"),
+                )
             if name == "sidewalk_s":  # curb (texture top rows) must face the road (north)
-                qb.add((x0, yb, 0), (GROUND_TILE_M, 0, 0), (0, -(yb - ya), 0), key, categories.GROUND, Material.GROUND, 0)
+                qb.add(
+                    (x0, yb, 0),
+                    (GROUND_TILE_M, 0, 0),
+                    (0, -(yb - ya), 0),
+                    key,
+                    categories.GROUND,
+                    Material.GROUND,
+                    0,
+                )
             elif name == "sidewalk_n":  # flip so that the curb rows lie at the road side (south)
-                qb.add((x0 + GROUND_TILE_M, ya, 0), (-GROUND_TILE_M, 0, 0), (0, yb - ya, 0), key, categories.GROUND,
-                       Material.GROUND, 0)
+                qb.add(
+                    (x0 + GROUND_TILE_M, ya, 0),
+                    (-GROUND_TILE_M, 0, 0),
+                    (0, yb - ya, 0),
+                    key,
+                    categories.GROUND,
+                    Material.GROUND,
+                    0,
+                )
             else:
-                qb.add((x0, yb, 0), (GROUND_TILE_M, 0, 0), (0, -(yb - ya), 0), key, categories.GROUND, Material.GROUND, 0)
+                qb.add(
+                    (x0, yb, 0),
+                    (GROUND_TILE_M, 0, 0),
+                    (0, -(yb - ya), 0),
+                    key,
+                    categories.GROUND,
+                    Material.GROUND,
+                    0,
+                )
 
     # Buildings on both sides, fronts facing the street.
     buildings = []
     urban = veg < 0.5
-    styles = ["brick", "plaster", "concrete", "brick"] if urban else ["siding", "brick", "plaster", "siding"]
+    styles = (
+        ["brick", "plaster", "concrete", "brick"]
+        if urban
+        else ["siding", "brick", "plaster", "siding"]
+    )
     bid = 0
     facade_min = [np.inf, np.inf]
     for side, sgn in ((0, -1.0), (1, 1.0)):
@@ -394,7 +558,12 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
                 floors = int(rng.integers(2, 7))
                 floor_h = rng.uniform(3.0, 3.6)
                 gap = rng.uniform(0, 1.5) if rng.random() < 0.3 else 0.0
-                setback = road_half + sidewalk + yard + (rng.uniform(0, 1.5) if rng.random() < 0.3 else 0.0)
+                setback = (
+                    road_half
+                    + sidewalk
+                    + yard
+                    + (rng.uniform(0, 1.5) if rng.random() < 0.3 else 0.0)
+                )
             else:
                 w = rng.uniform(8, 13)
                 floors = int(rng.integers(1, 3))
@@ -417,17 +586,45 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
                 front = "+y"
             facade_min[side] = min(facade_min[side], setback)
             fkey, skey, rkey = f"facade:{bid}", f"side:{bid}", f"roof:{bid}"
-            tc.register(fkey, tx.facade_texture, dict(seed=bseed, width_m=w, height_m=h, floor_h=floor_h, style=style,
-                                                      shopfront=urban and rng.random() < 0.7),
-                        depends=("snow", "snow_pattern"))
-            tc.register(skey, tx.side_wall_texture, dict(seed=bseed + 1, width_m=depth, height_m=h, style=style))
-            tc.register(rkey, tx.roof_texture, dict(seed=bseed + 2, width_m=w, depth_m=depth),
-                        depends=("snow", "snow_pattern"))
+            tc.register(
+                fkey,
+                tx.facade_texture,
+                dict(
+                    seed=bseed,
+                    width_m=w,
+                    height_m=h,
+                    floor_h=floor_h,
+                    style=style,
+                    shopfront=urban and rng.random() < 0.7,
+                ),
+                depends=("snow", "snow_pattern"),
+            )
+            tc.register(
+                skey,
+                tx.side_wall_texture,
+                dict(seed=bseed + 1, width_m=depth, height_m=h, style=style),
+            )
+            tc.register(
+                rkey,
+                tx.roof_texture,
+                dict(seed=bseed + 2, width_m=w, depth_m=depth),
+                depends=("snow", "snow_pattern"),
+            )
             tex = {front: fkey, "+x": skey, "-x": skey, "+z": rkey}
             faces = (front, "+x", "-x", "+z")
-            box_quads(qb, lo, hi, tex, categories.BUILDING, Material.WALL,
-                      receivers={front: new_plane(), "+x": new_plane(), "-x": new_plane()}, owner=bid, faces=faces)
-            qb.rows[-4] = qb.rows[-4][:5] + (Material.FACADE,) + qb.rows[-4][6:]  # the front is a FACADE
+            box_quads(
+                qb,
+                lo,
+                hi,
+                tex,
+                categories.BUILDING,
+                Material.WALL,
+                receivers={front: new_plane(), "+x": new_plane(), "-x": new_plane()},
+                owner=bid,
+                faces=faces,
+            )
+            # the front is a FACADE
+            qb.rows[-4] = qb.rows[-4][:5] + (Material.FACADE,) + qb.rows[-4][6:]
             buildings.append((lo, hi))
             bid += 1
             x = x1 + gap
@@ -435,11 +632,31 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
     for xe, front in ((x_lo - 12.0, "+x"), (x_hi, "-x")):
         lo, hi = (xe, -outer, 0.0), (xe + 12.0, outer, rng.uniform(9, 18))
         fkey = f"facade:{bid}"
-        tc.register(fkey, tx.facade_texture, dict(seed=int(rng.integers(1 << 30)), width_m=2 * outer,
-                                                  height_m=hi[2], floor_h=3.3, style="brick", shopfront=False,
-                                                  texel=0.05), depends=("snow", "snow_pattern"))
-        box_quads(qb, lo, hi, {front: fkey}, categories.BUILDING, Material.WALL, receivers={front: new_plane()},
-                  owner=bid, faces=(front,))
+        tc.register(
+            fkey,
+            tx.facade_texture,
+            dict(
+                seed=int(rng.integers(1 << 30)),
+                width_m=2 * outer,
+                height_m=hi[2],
+                floor_h=3.3,
+                style="brick",
+                shopfront=False,
+                texel=0.05,
+            ),
+            depends=("snow", "snow_pattern"),
+        )
+        box_quads(
+            qb,
+            lo,
+            hi,
+            {front: fkey},
+            categories.BUILDING,
+            Material.WALL,
+            receivers={front: new_plane()},
+            owner=bid,
+            faces=(front,),
+        )
         qb.rows[-1] = qb.rows[-1][:5] + (Material.FACADE,) + qb.rows[-1][6:]
         buildings.append((lo, hi))
         bid += 1
@@ -459,7 +676,9 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
             if yard > 2.5 and rng.random() < veg * 0.6:
                 y = sgn * (road_half + sidewalk + rng.uniform(1.5, yard - 0.5))
                 hgt, rad = rng.uniform(4, 11), rng.uniform(1.5, 3.5)
-                alpha += _add_tree(qb, tc, x + rng.uniform(-3, 3), y, hgt, rad, int(rng.integers(1 << 30)), obj)
+                alpha += _add_tree(
+                    qb, tc, x + rng.uniform(-3, 3), y, hgt, rad, int(rng.integers(1 << 30)), obj
+                )
                 obj += 1
             x += tree_step * rng.uniform(0.7, 1.3)
 
@@ -479,8 +698,16 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
         furniture.append((lo, hi))
         hy = y - sgn * 1.2
         hlo, hhi = (x - 0.3, min(y, hy) - 0.15, 6.3), (x + 0.3, max(y, hy) + 0.15, 6.55)
-        box_quads(qb, hlo, hhi, {"*": "lamp_head"}, categories.OTHER, Material.LAMP, owner=obj,
-                  emit={f: 1.0 for f in ("+x", "-x", "+y", "-y")})
+        box_quads(
+            qb,
+            hlo,
+            hhi,
+            {"*": "lamp_head"},
+            categories.OTHER,
+            Material.LAMP,
+            owner=obj,
+            emit={f: 1.0 for f in ("+x", "-x", "+y", "-y")},
+        )
         furniture.append((hlo, hhi))
         lamps.append((x, hy, 6.25))
         obj += 1
@@ -498,11 +725,29 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
             sw, sh = rng.uniform(0.45, 0.8), rng.uniform(0.45, 0.8)
             face = -sgn  # facing the road
             if face > 0:
-                qb.add((x - sw / 2, y + 0.05, 2.8), (sw, 0, 0), (0, 0, -sh), key, categories.OTHER, Material.WALL, -1,
-                       None, obj)
+                qb.add(
+                    (x - sw / 2, y + 0.05, 2.8),
+                    (sw, 0, 0),
+                    (0, 0, -sh),
+                    key,
+                    categories.OTHER,
+                    Material.WALL,
+                    -1,
+                    None,
+                    obj,
+                )
             else:
-                qb.add((x + sw / 2, y - 0.05, 2.8), (-sw, 0, 0), (0, 0, -sh), key, categories.OTHER, Material.WALL, -1,
-                       None, obj)
+                qb.add(
+                    (x + sw / 2, y - 0.05, 2.8),
+                    (-sw, 0, 0),
+                    (0, 0, -sh),
+                    key,
+                    categories.OTHER,
+                    Material.WALL,
+                    -1,
+                    None,
+                    obj,
+                )
         elif r < 0.7:
             lo, hi = (x - 0.3, y - 0.3, 0.0), (x + 0.3, y + 0.3, 1.0)
             box_quads(qb, lo, hi, {"*": "bin"}, categories.OTHER, owner=obj)
@@ -524,16 +769,31 @@ def build_scene(seed: int, *, kind: str = "street", length_m: float = 60.0, lati
 
     static = qb.build()
     return Scene(
-        seed=seed, kind=kind, length_m=float(length_m), latitude=float(latitude), longitude=float(longitude),
-        vegetation=veg, road_half_width=road_half, sidewalk_width=sidewalk,
-        lanes_y={"eastbound": -lane_w / 2 * (lanes // 2), "westbound": lane_w / 2 * (lanes // 2),
-                 "parking_south": -park_y, "parking_north": park_y},
+        seed=seed,
+        kind=kind,
+        length_m=float(length_m),
+        latitude=float(latitude),
+        longitude=float(longitude),
+        vegetation=veg,
+        road_half_width=road_half,
+        sidewalk_width=sidewalk,
+        lanes_y={
+            "eastbound": -lane_w / 2 * (lanes // 2),
+            "westbound": lane_w / 2 * (lanes // 2),
+            "parking_south": -park_y,
+            "parking_north": park_y,
+        },
         sidewalk_y=(-(road_half + sidewalk / 2), road_half + sidewalk / 2),
-        facade_y=(-facade_min[0], facade_min[1]), x_range=(x_lo, x_hi), static=static,
+        facade_y=(-facade_min[0], facade_min[1]),
+        x_range=(x_lo, x_hi),
+        static=static,
         buildings=np.array(buildings, np.float64).reshape(-1, 2, 3),
-        furniture_boxes=np.array(furniture, np.float64).reshape(-1, 2, 3), alpha_casters=np.array(alpha, np.int64),
-        lamps=np.array(lamps, np.float64).reshape(-1, 3), parking_slots=np.array(slots, np.float64).reshape(-1, 4),
-        textures=tc, n_planes=plane[0],
+        furniture_boxes=np.array(furniture, np.float64).reshape(-1, 2, 3),
+        alpha_casters=np.array(alpha, np.int64),
+        lamps=np.array(lamps, np.float64).reshape(-1, 3),
+        parking_slots=np.array(slots, np.float64).reshape(-1, 4),
+        textures=tc,
+        n_planes=plane[0],
     )
 
 
@@ -551,11 +811,24 @@ def _sign_tex(seed: int) -> np.ndarray:
 
 N_CAR_VARIANTS = 48  # distinct car models x paints (textures are cached per variant)
 N_PEOPLE_VARIANTS = 64
-_CAR_SHAPES = [(4.4, 1.8, 0.85, 0.5), (4.8, 1.85, 0.9, 0.55), (4.2, 1.75, 0.8, 0.5), (5.0, 1.95, 1.05, 0.75)]
+_CAR_SHAPES = [
+    (4.4, 1.8, 0.85, 0.5),
+    (4.8, 1.85, 0.9, 0.55),
+    (4.2, 1.75, 0.8, 0.5),
+    (5.0, 1.95, 1.05, 0.75),
+]
 
 
-def add_car(qb: _QuadBuilder, tc: TextureCache, x: float, y: float, direction: float, variant: int, owner: int,
-            moving: bool) -> list[tuple]:
+def add_car(
+    qb: _QuadBuilder,
+    tc: TextureCache,
+    x: float,
+    y: float,
+    direction: float,
+    variant: int,
+    owner: int,
+    moving: bool,
+) -> list[tuple]:
     """Adds a car (body box + cabin box) centred at (x, y) heading ``direction`` (+1 east, -1 west).
 
     Returns:
@@ -563,37 +836,77 @@ def add_car(qb: _QuadBuilder, tc: TextureCache, x: float, y: float, direction: f
     """
     length, width, body_h, cabin_h = _CAR_SHAPES[variant % len(_CAR_SHAPES)]
     seed = 1000 + variant
-    faces = ("side_l", "side_r", "front", "back", "top", "cabin_side_l", "cabin_side_r", "cabin_front", "cabin_back",
-             "cabin_top")
+    faces = (
+        "side_l",
+        "side_r",
+        "front",
+        "back",
+        "top",
+        "cabin_side_l",
+        "cabin_side_r",
+        "cabin_front",
+        "cabin_back",
+        "cabin_top",
+    )
     keys = {}
     for f in faces:
         key = f"car:{variant}:{f}"
-        tc.register(key, _car_face, dict(seed=seed, face=f, length=length, width=width, body_h=body_h, cabin_h=cabin_h))
+        tc.register(
+            key,
+            _car_face,
+            dict(seed=seed, face=f, length=length, width=width, body_h=body_h, cabin_h=cabin_h),
+        )
         keys[f] = key
     z0 = 0.18
     lo, hi = (x - length / 2, y - width / 2, z0), (x + length / 2, y + width / 2, z0 + body_h)
     # Heading east: front is +x, left side is +y.
     if direction > 0:
-        tex = {"+x": keys["front"], "-x": keys["back"], "+y": keys["side_l"], "-y": keys["side_r"], "+z": keys["top"]}
+        tex = {
+            "+x": keys["front"],
+            "-x": keys["back"],
+            "+y": keys["side_l"],
+            "-y": keys["side_r"],
+            "+z": keys["top"],
+        }
     else:
-        tex = {"-x": keys["front"], "+x": keys["back"], "-y": keys["side_l"], "+y": keys["side_r"], "+z": keys["top"]}
+        tex = {
+            "-x": keys["front"],
+            "+x": keys["back"],
+            "-y": keys["side_l"],
+            "+y": keys["side_r"],
+            "+z": keys["top"],
+        }
     emit = {"+x": 2.0, "-x": 2.0} if moving else None
     box_quads(qb, lo, hi, tex, categories.VEHICLE, Material.CAR, owner=owner, emit=emit)
     cl = length * 0.55
     cx = x - direction * length * 0.05
-    clo, chi = (cx - cl / 2, y - width * 0.45, z0 + body_h), (cx + cl / 2, y + width * 0.45, z0 + body_h + cabin_h)
+    clo, chi = (
+        (cx - cl / 2, y - width * 0.45, z0 + body_h),
+        (cx + cl / 2, y + width * 0.45, z0 + body_h + cabin_h),
+    )
     if direction > 0:
-        ctex = {"+x": keys["cabin_front"], "-x": keys["cabin_back"], "+y": keys["cabin_side_l"],
-                "-y": keys["cabin_side_r"], "+z": keys["cabin_top"]}
+        ctex = {
+            "+x": keys["cabin_front"],
+            "-x": keys["cabin_back"],
+            "+y": keys["cabin_side_l"],
+            "-y": keys["cabin_side_r"],
+            "+z": keys["cabin_top"],
+        }
     else:
-        ctex = {"-x": keys["cabin_front"], "+x": keys["cabin_back"], "-y": keys["cabin_side_l"],
-                "+y": keys["cabin_side_r"], "+z": keys["cabin_top"]}
+        ctex = {
+            "-x": keys["cabin_front"],
+            "+x": keys["cabin_back"],
+            "-y": keys["cabin_side_l"],
+            "+y": keys["cabin_side_r"],
+            "+z": keys["cabin_top"],
+        }
     box_quads(qb, clo, chi, ctex, categories.VEHICLE, Material.CAR, owner=owner)
     return [(lo, hi), (clo, chi)]
 
 
-def _car_instance(tc: TextureCache, x: float, y: float, direction: float, variant: int, owner: int,
-                  moving: bool) -> tuple[QuadSet, np.ndarray]:
+def _car_instance(
+    tc: TextureCache, x: float, y: float, direction: float, variant: int, owner: int, moving: bool
+) -> tuple[QuadSet, np.ndarray]:
     """A car's quads and boxes from a cached template at the origin, moved to (x, y)."""
     key = (variant, direction > 0, moving)
     if key not in tc.car_templates:
@@ -602,8 +915,12 @@ def _car_instance(tc: TextureCache, x: float, y: float, direction: float, varian
         tc.car_templates[key] = (qb.build(), np.array(boxes, np.float64))
     tpl, boxes = tc.car_templates[key]
     off = np.array([x, y, 0.0])
-    q = dataclasses.replace(tpl, origin=tpl.origin + off, shadow_pt=tpl.shadow_pt + off,
-                            owner=np.full(tpl.n, owner, np.int32))
+    q = dataclasses.replace(
+        tpl,
+        origin=tpl.origin + off,
+        shadow_pt=tpl.shadow_pt + off,
+        owner=np.full(tpl.n, owner, np.int32),
+    )
     return q, boxes + off
 
 
@@ -642,7 +959,9 @@ def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[
     for x, y, sgn, sid in scene.parking_slots:
         r = _hash_rng(scene.seed, 21, int(sid), day, block)
         if r.random() < occupancy:
-            q, b = _car_instance(tc, x, y, -sgn, int(r.integers(0, N_CAR_VARIANTS)), obj, moving=False)
+            q, b = _car_instance(
+                tc, x, y, -sgn, int(r.integers(0, N_CAR_VARIANTS)), obj, moving=False
+            )
             cars.append(q)
             boxes += list(b)
         obj += 1
@@ -659,7 +978,11 @@ def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[
             r = _hash_rng(scene.seed, 22, int(direction > 0), k)
             rate = _traffic_rate(((k * win - t) / 3600.0 + hour) % 24)
             for _ in range(int(r.poisson(rate * win))):
-                t0, v, variant = k * win + r.random() * win, r.uniform(7.0, 13.0), int(r.integers(0, N_CAR_VARIANTS))
+                t0, v, variant = (
+                    k * win + r.random() * win,
+                    r.uniform(7.0, 13.0),
+                    int(r.integers(0, N_CAR_VARIANTS)),
+                )
                 if t < t0:
                     continue
                 d = v * (t - t0)
@@ -693,8 +1016,17 @@ def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[
                 y = ys + yoff
                 # Facing the street: the cut-out lies in the xz-plane, two-sided.
                 alpha.append(len(qb.rows))
-                qb.add((x - 0.35, y, 1.75), (0.7, 0, 0), (0, 0, -1.75), key, categories.OTHER, Material.CUTOUT, -1,
-                       (x, y, 1.0), obj)
+                qb.add(
+                    (x - 0.35, y, 1.75),
+                    (0.7, 0, 0),
+                    (0, 0, -1.75),
+                    key,
+                    categories.OTHER,
+                    Material.CUTOUT,
+                    -1,
+                    (x, y, 1.0),
+                    obj,
+                )
                 obj += 1
     people = qb.build()
     # People first so that ``alpha`` indexes stay valid.

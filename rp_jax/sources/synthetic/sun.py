@@ -90,7 +90,9 @@ def solar_position(
     true_long = mean_long + eq_ctr
     omega = np.radians(125.04 - 1934.136 * jc)
     app_long = true_long - 0.00569 - 0.00478 * np.sin(omega)
-    mean_obliq = 23.0 + (26.0 + (21.448 - jc * (46.815 + jc * (0.00059 - jc * 0.001813))) / 60.0) / 60.0
+    mean_obliq = (
+        23.0 + (26.0 + (21.448 - jc * (46.815 + jc * (0.00059 - jc * 0.001813))) / 60.0) / 60.0
+    )
     obliq = np.radians(mean_obliq + 0.00256 * np.cos(omega))
     decl = np.arcsin(np.sin(obliq) * np.sin(np.radians(app_long)))
     var_y = np.tan(obliq / 2.0) ** 2

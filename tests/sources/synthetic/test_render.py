@@ -8,7 +8,7 @@ import pytest
 
 from rp_jax import categories
 from rp_jax.sources.synthetic import textures as tx
-from rp_jax.sources.synthetic.render import View, contact_sheet, look_at, project, render
+from rp_jax.sources.synthetic.render import contact_sheet, look_at, project, render
 from rp_jax.sources.synthetic.scene import Material, QuadSet, build_scene
 
 TZ = dt.timezone(dt.timedelta(hours=-5))
@@ -21,8 +21,14 @@ def scene():
 
 
 def _webcam(scene, w=320, h=240, distortion=None):
-    return look_at((30.0, scene.sidewalk_y[0], 4.0), (36.0, scene.facade_y[1], 6.0), width=w, height=h,
-                   fov_deg=70.0, distortion=distortion)
+    return look_at(
+        (30.0, scene.sidewalk_y[0], 4.0),
+        (36.0, scene.facade_y[1], 6.0),
+        width=w,
+        height=h,
+        fov_deg=70.0,
+        distortion=distortion,
+    )
 
 
 def _clear_day(scene, hour=12, minute=30, month=7, start=1):
@@ -36,8 +42,12 @@ def _clear_day(scene, hour=12, minute=30, month=7, start=1):
 
 
 def test_frame_shapes_and_categories(scene):
-    view = look_at((20.0, scene.lanes_y["eastbound"], 1.6), (60.0, scene.lanes_y["eastbound"], 1.6),
-                   width=160, height=120)
+    view = look_at(
+        (20.0, scene.lanes_y["eastbound"], 1.6),
+        (60.0, scene.lanes_y["eastbound"], 1.6),
+        width=160,
+        height=120,
+    )
     f = render(scene, view, NOON)
     assert f.rgb.shape == (120, 160, 3) and f.rgb.dtype == np.uint8
     assert f.depth.shape == (120, 160) and f.depth.dtype == np.float32
@@ -54,8 +64,13 @@ def test_frame_shapes_and_categories(scene):
 def test_depth_is_consistent_between_views(scene):
     when = _clear_day(scene)
     va = _webcam(scene)
-    vb = look_at((26.0, scene.sidewalk_y[0] + 1.0, 2.5), (38.0, scene.facade_y[1], 5.0), width=320, height=240,
-                 fov_deg=65.0)
+    vb = look_at(
+        (26.0, scene.sidewalk_y[0] + 1.0, 2.5),
+        (38.0, scene.facade_y[1], 5.0),
+        width=320,
+        height=240,
+        fov_deg=65.0,
+    )
     fa, fb = render(scene, va, when), render(scene, vb, when)
     v, u = np.mgrid[0:240:7, 0:320:7]
     z = fa.depth[v, u]
@@ -77,18 +92,29 @@ def test_depth_is_consistent_between_views(scene):
 def _marker_scene(scene, centre):
     """The scene plus a vertical 0.6 m marker quad facing -y with a dark dot at its centre."""
     key = "marker"
+
     def tex():
         img = np.full((64, 64, 3), 0.9, np.float32)
         yy, xx = np.mgrid[0:64, 0:64]
         img *= 1 - 0.85 * np.exp(-((xx - 31.5) ** 2 + (yy - 31.5) ** 2) / (2 * 4.0**2))[..., None]
         return tx._finish(img, np.zeros((64, 64), np.uint8), blur=0)
+
     scene.textures.register(key, tex, {})
     o = np.asarray(centre) + np.array([-0.3, 0.0, 0.3])
-    marker = QuadSet(o[None], np.array([[0.6, 0, 0]]), np.array([[0, 0, -0.6]]), [key],
-                     np.array([categories.OTHER], np.uint8), np.array([Material.WALL], np.int8),
-                     np.array([-1], np.int32), np.asarray(centre)[None] - [0, 0.05, 0], np.array([-1], np.int32),
-                     np.zeros(1, np.float32))
+    marker = QuadSet(
+        o[None],
+        np.array([[0.6, 0, 0]]),
+        np.array([[0, 0, -0.6]]),
+        [key],
+        np.array([categories.OTHER], np.uint8),
+        np.array([Material.WALL], np.int8),
+        np.array([-1], np.int32),
+        np.asarray(centre)[None] - [0, 0.05, 0],
+        np.array([-1], np.int32),
+        np.zeros(1, np.float32),
+    )
     import dataclasses
+
     return dataclasses.replace(scene, static=QuadSet.concat([scene.static, marker]))
 
 
@@ -97,11 +123,18 @@ def test_marker_drawn_where_projected(scene, distortion):
     centre = np.array([35.0, scene.sidewalk_y[0] + 3.5, 2.0])
     s = _marker_scene(scene, centre)
     for eye in [(33.0, scene.sidewalk_y[0], 1.7), (36.4, scene.sidewalk_y[0] - 0.5, 2.3)]:
-        view = look_at(eye, centre + [0.37, 0.0, 0.21], width=320, height=240, fov_deg=60.0, distortion=distortion)
+        view = look_at(
+            eye,
+            centre + [0.37, 0.0, 0.21],
+            width=320,
+            height=240,
+            fov_deg=60.0,
+            distortion=distortion,
+        )
         f = render(s, view, _clear_day(scene), seed=0)
         p = project(view, centre[None])[0]
         x0, y0 = int(p[0]) - 10, int(p[1]) - 10
-        patch = f.rgb[y0:y0 + 21, x0:x0 + 21].astype(np.float64).mean(-1)
+        patch = f.rgb[y0 : y0 + 21, x0 : x0 + 21].astype(np.float64).mean(-1)
         dark = np.clip(np.percentile(patch, 90) - patch, 0, None)
         dark[dark < 0.3 * dark.max()] = 0
         yy, xx = np.mgrid[0:21, 0:21]
@@ -166,7 +199,13 @@ def test_sift_day_night_and_time_of_day_repeatability(scene):
 
 def test_vegetation_changes_with_season():
     s = build_scene(4, vegetation=0.9)
-    view = look_at((20.0, s.sidewalk_y[0], 1.7), (24.0, s.sidewalk_y[1], 4.0), width=320, height=240, fov_deg=75.0)
+    view = look_at(
+        (20.0, s.sidewalk_y[0], 1.7),
+        (24.0, s.sidewalk_y[1], 4.0),
+        width=320,
+        height=240,
+        fov_deg=75.0,
+    )
     july = render(s, view, dt.datetime(2024, 7, 20, 12, 0, tzinfo=TZ))
     jan = render(s, view, dt.datetime(2024, 1, 20, 12, 0, tzinfo=TZ))
     assert july.meta["foliage"] == 1.0 and jan.meta["foliage"] == 0.0
@@ -177,7 +216,13 @@ def test_vegetation_changes_with_season():
 
 def test_foliage_moves_between_frames_and_buildings_do_not():
     s = build_scene(4, vegetation=0.9)
-    view = look_at((20.0, s.sidewalk_y[0], 1.7), (24.0, s.sidewalk_y[1], 4.0), width=320, height=240, fov_deg=75.0)
+    view = look_at(
+        (20.0, s.sidewalk_y[0], 1.7),
+        (24.0, s.sidewalk_y[1], 4.0),
+        width=320,
+        height=240,
+        fov_deg=75.0,
+    )
     when = dt.datetime(2024, 7, 20, 12, 0, tzinfo=TZ)
     a, b = render(s, view, when), render(s, view, when + dt.timedelta(seconds=2))
     again = render(s, view, when)
@@ -195,7 +240,7 @@ def test_flutter_is_smooth_seeded_and_off_when_calm():
 
     img = np.zeros((64, 64, 4), np.uint8)
     for c in range(0, 64, 8):
-        img[:, c:c + 3] = 255  # vertical stripes, 3 px wide
+        img[:, c : c + 3] = 255  # vertical stripes, 3 px wide
     rng = lambda: np.random.default_rng(5)  # noqa: E731
     np.testing.assert_array_equal(_flutter(img, 0.1, 8.0, rng()), img)  # below 0.2 px: untouched
     moved = _flutter(img, 2.0, 16.0, rng())

@@ -25,7 +25,8 @@ def test_layout_and_normals_face_the_street():
     fronts = np.flatnonzero(q.material == 1)
     n = q.normal[fronts]
     y = q.origin[fronts, 1]
-    inside = np.abs(n[:, 0]) < 0.5  # street facades, not the buildings closing the ends (facing along x)
+    # street facades, not the buildings closing the ends (facing along x)
+    inside = np.abs(n[:, 0]) < 0.5
     assert np.all(np.sign(n[inside, 1]) == -np.sign(y[inside]))
     ground = q.category == categories.GROUND
     np.testing.assert_allclose(q.normal[ground], [[0, 0, 1]] * int(ground.sum()), atol=1e-12)

@@ -12,9 +12,13 @@ pvlib = pytest.importorskip("pvlib")
 @pytest.mark.parametrize("latitude", [-55.0, -33.9, 0.0, 23.4, 40.44, 51.75, 64.1])
 def test_matches_pvlib_within_half_degree(latitude):
     rng = np.random.default_rng(int(latitude * 10) % 1000)
-    ts = rng.uniform(pd.Timestamp("1990-01-01").timestamp(), pd.Timestamp("2040-01-01").timestamp(), 400)
+    ts = rng.uniform(
+        pd.Timestamp("1990-01-01").timestamp(), pd.Timestamp("2040-01-01").timestamp(), 400
+    )
     longitude = float(rng.uniform(-180, 180))
-    ref = pvlib.solarposition.get_solarposition(pd.to_datetime(ts, unit="s", utc=True), latitude, longitude)
+    ref = pvlib.solarposition.get_solarposition(
+        pd.to_datetime(ts, unit="s", utc=True), latitude, longitude
+    )
     el, az = solar_position(ts, latitude, longitude)
     assert np.max(np.abs(el - ref["elevation"].to_numpy())) < 0.5
     daz = np.abs((az - ref["azimuth"].to_numpy() + 180.0) % 360.0 - 180.0)
