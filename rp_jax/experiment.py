@@ -229,7 +229,8 @@ def run(
 
 
 def _image_loader(config):
-    """(viewpoint, image_id) -> RGB of the dataset's images, for drawing keypoints; None if unreadable."""
+    """(viewpoint, image_id) -> RGB of the dataset's images, for drawing keypoints; None if
+    unreadable."""
     import importlib
 
     from rp_jax.datasets import builder as builder_lib
@@ -273,7 +274,7 @@ def read_jsonl(path: Path) -> list[dict]:
     path = Path(path)
     if not path.exists():
         return []
-    return [json.loads(l) for l in path.read_text().splitlines() if l.strip()]
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
 def last_validation(workdir: Path) -> dict | None:
@@ -281,7 +282,7 @@ def last_validation(workdir: Path) -> dict | None:
     if not path.exists():
         return None
     lines = read_jsonl(path)
-    val = [l for l in lines if "val_mse" in l]
+    val = [rec for rec in lines if "val_mse" in rec]
     return (
         {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]}
         if val
@@ -316,12 +317,17 @@ def report_markdown(metrics: dict, config) -> str:
         f"# {config.dataset} ({config.data_config}): repeatability prediction",
         "",
         "## Setup",
-        f"- Schedule `{metrics['schedule']['name']}`: T = {len(metrics['schedule']['labels'])} timestamps "
+        f"- Schedule `{metrics['schedule']['name']}`: "
+        f"T = {len(metrics['schedule']['labels'])} timestamps "
         f"({metrics['schedule']['labels'][0]} ... {metrics['schedule']['labels'][-1]}).",
-        f"- Points: {metrics['counts']['train']} train ({metrics['counts']['train_viewpoints']} viewpoints), "
-        f"{metrics['counts']['validation']} validation ({metrics['counts']['validation_viewpoints']} held-out "
-        f"training viewpoints), {metrics['counts']['test']} test ({metrics['counts']['test_viewpoints']} viewpoints).",
-        f"- Time input `{config.time_fields}` ({config.time_encoding}); {config.num_epochs} epochs, batch "
+        f"- Points: {metrics['counts']['train']} train "
+        f"({metrics['counts']['train_viewpoints']} viewpoints), "
+        f"{metrics['counts']['validation']} validation "
+        f"({metrics['counts']['validation_viewpoints']} held-out "
+        f"training viewpoints), {metrics['counts']['test']} test "
+        f"({metrics['counts']['test_viewpoints']} viewpoints).",
+        f"- Time input `{config.time_fields}` ({config.time_encoding}); "
+        f"{config.num_epochs} epochs, batch "
         f"{config.batch_size}, AdamW lr {config.learning_rate}.",
         "",
         "## Results on the test viewpoints",
@@ -341,8 +347,8 @@ def report_markdown(metrics: dict, config) -> str:
         verdict = f"It beats all {len(b)} baselines."
     elif beats:
         verdict = (
-            f"It beats {', '.join(n.replace('_', ' ') for n in beats)} but not the others; the best "
-            f"baseline is {best_base[0].replace('_', ' ')}."
+            f"It beats {', '.join(n.replace('_', ' ') for n in beats)} but not the others; "
+            f"the best baseline is {best_base[0].replace('_', ' ')}."
         )
     else:
         verdict = f"It beats none of the baselines; the best is {best_base[0].replace('_', ' ')}."
@@ -358,12 +364,16 @@ def report_markdown(metrics: dict, config) -> str:
     gt, pr = np.array(metrics["curves"]["gt"], float), np.array(metrics["curves"]["pred"], float)
     labels = metrics["schedule"]["labels"]
     lines.append(
-        f"The average ground-truth curve peaks at {labels[int(np.nanargmax(gt))]} ({np.nanmax(gt):.3f}) and is "
-        f"lowest at {labels[int(np.nanargmin(gt))]} ({np.nanmin(gt):.3f}); the average prediction peaks at "
-        f"{labels[int(np.nanargmax(pr))]} ({np.nanmax(pr):.3f}), with a correlation of {metrics['curve_corr']:.3f} "
+        f"The average ground-truth curve peaks at {labels[int(np.nanargmax(gt))]} "
+        f"({np.nanmax(gt):.3f}) and is "
+        f"lowest at {labels[int(np.nanargmin(gt))]} ({np.nanmin(gt):.3f}); "
+        "the average prediction peaks at "
+        f"{labels[int(np.nanargmax(pr))]} ({np.nanmax(pr):.3f}), "
+        f"with a correlation of {metrics['curve_corr']:.3f} "
         "between the two curves (over timestamps that have images)."
         + (
-            f" Timestamps without any test image: {', '.join(labels[j] for j in np.flatnonzero(~np.isfinite(gt)))}."
+            " Timestamps without any test image: "
+            f"{', '.join(labels[j] for j in np.flatnonzero(~np.isfinite(gt)))}."
             if not np.isfinite(gt).all()
             else ""
         )
@@ -378,7 +388,8 @@ def report_markdown(metrics: dict, config) -> str:
     if "validation" in metrics:
         v = metrics["validation"]
         lines.append(
-            f"Validation (held-out training viewpoints) MAE {v['val_mae']:.4f} at epoch {v['epoch']}."
+            "Validation (held-out training viewpoints) "
+            f"MAE {v['val_mae']:.4f} at epoch {v['epoch']}."
         )
     lines += ["", "## Figures", ""]
     for f in metrics.get("figures", []):

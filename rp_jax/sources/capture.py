@@ -104,5 +104,5 @@ class Capture:
             raise ValueError(f"{self.image_path} has no pose")
         return -self.R.T @ self.t
 
-    def with_slot(self, cycle: int, slot: int) -> "Capture":
+    def with_slot(self, cycle: int, slot: int) -> Capture:
         return dataclasses.replace(self, cycle=cycle, slot=slot)

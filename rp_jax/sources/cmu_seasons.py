@@ -6,7 +6,8 @@ available ground truth camera poses" (``viewpoints.group_by_pose``).
 
 Layout read (see ``DATA_FORMATS.md``)::
 
-    <root>/intrinsics.txt                                   c0/c1: id OPENCV W H fx fy cx cy k1 k2 p1 p2
+    <root>/intrinsics.txt                                   c0/c1: id OPENCV W H fx fy cx cy
+                                                            k1 k2 p1 p2
     <root>/slice{N}/database/img_<i>_<c0|c1>_<unix_us>us.jpg
     <root>/slice{N}/query/img_<i>_<c0|c1>_<unix_us>us.jpg
     <root>/slice{N}/ground-truth-database-images-slice{N}.txt   name qw qx qy qz cx cy cz

@@ -24,6 +24,7 @@ looked for and what was missing.
 from __future__ import annotations
 
 import collections
+import contextlib
 import dataclasses
 import logging
 import zoneinfo
@@ -239,10 +240,8 @@ def segmentation_path(root: Path, image_path: Path, *alternatives: Path) -> Path
     if not seg_root.is_dir():
         return None
     candidates = []
-    try:
+    with contextlib.suppress(ValueError):
         candidates.append(Path(image_path).relative_to(root).with_suffix(".png"))
-    except ValueError:
-        pass
     candidates.extend(alternatives)
     for rel in candidates:
         path = seg_root / rel

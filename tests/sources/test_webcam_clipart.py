@@ -176,7 +176,10 @@ def _mat73(path, **scalars):
         for key, value in scalars.items():
             ds = f.create_dataset(key, data=np.array([[float(value)]]))
             ds.attrs["MATLAB_class"] = np.bytes_("double")
-    text = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jun  1 12:00:00 2015 HDF5 schema 1.00 ."
+    text = (
+        b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jun  1 12:00:00 2015 "
+        b"HDF5 schema 1.00 ."
+    )
     header = text.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02" + b"IM"
     with open(path, "r+b") as f:
         f.write(header.ljust(512, b"\x00"))
