@@ -21,7 +21,9 @@ $(INSTALLED): pyproject.toml | $(PY)
 demo: $(INSTALLED)
 	$(PY) -m experiments.webcam_clipart
 
+# Lint first: a ruff finding fails the target before pytest runs.
 test: $(INSTALLED)
+	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
 	$(PY) -m pytest -q -p no:cacheprovider
 
 # Rules in pyproject.toml ([tool.ruff.lint]); ruff reads the notebooks' code cells too.
