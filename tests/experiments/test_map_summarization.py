@@ -264,3 +264,34 @@ def test_pool_pairs_the_two_oracles():
     a["outcomes"]["oracle_agnostic"] = {"0.5": [no, no, ok, ok]}
     gap = mexp.pool([a], ["0.5"], resamples=50)["oracle_date_vs_agnostic"]["0.5"]["5m_10deg"]
     assert gap == {"only_date": 2, "only_agnostic": 1, "p": 1.0}
+
+
+@pytest.mark.slow
+def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
+    """As on a real download: the posed half is scored, the rest localized and counted."""
+    import shutil
+
+    from rp_jax.sources import cmu_seasons
+    from rp_jax.sources.synthetic import layouts, presets
+
+    workdir, metrics, argv = tiny_run
+    root = tmp_path / "cmu"
+    shutil.copytree(metrics["dataset"]["map"][0], root)
+    poses = cmu_seasons.read_query_ground_truth(root, 8)
+    assert len(poses) == 16
+    kept = sorted(poses)[::2]
+    (root / presets.EVALUATION_DIR / "ground-truth-query-images-slice8.txt").unlink()
+    layouts.write_cmu_query_poses(root / "slice8", [(n, *poses[n]) for n in kept])
+    tfds_dir = argv[argv.index("--tfds-dir") + 1]
+    half = [
+        "--size", "tiny", "--workdir", str(tmp_path / "run"), "--tfds-dir", tfds_dir,
+        "--config.num_epochs=1", f"--config.map.root={root}", "--config.map.ratios=(0.5,)",
+    ]
+    assert main(half) == 0
+    out = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert out["queries"] == 8 and out["queries_without_pose"] == 8
+    report = (tmp_path / "run" / "report.md").read_text()
+    assert "8 with a ground-truth pose (8 without one" in report
+    # Every query was localized and written, posed or not.
+    sub = read_submission(tmp_path / "run" / "seed0" / "submissions" / "full_map.txt")
+    assert set(sub) - set(kept), "no unposed query in the submission"
