@@ -53,7 +53,7 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     # 0, 1, 2 (ties: the simpler recipe). The command that chooses (README, "Choosing rp"):
     #   python -m experiments.map_summarization --workdir runs/mapsum_select_slice6 \
     #     --config.map.slice=6 "--config.map.candidates=('rp_kcover','rp_cmu','rp_cmu_kcover')"
-    m.rp_method = "rp_kcover"
+    m.rp_method = "rp_cmu_kcover"
     m.candidates = ()
     m.cmu_rp_epochs = {"tiny": 2, "small": 8, "full": 8}[size]  # the CMU-trained RP
     m.oracle_radius_px = 4.0  # oracle_date: a re-detection within this distance
