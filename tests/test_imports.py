@@ -89,3 +89,12 @@ def test_predict_does_not_import_train():
     for name in ("predict", "checkpoints", "model", "platform"):
         imported = _imported_modules(ROOT / "rp_jax" / f"{name}.py")
         assert "rp_jax.train" not in imported, f"rp_jax/{name}.py imports rp_jax.train"
+
+
+def test_localize_does_not_import_mapsum():
+    """mapsum builds on localize (its oracles match 2D-3D); localize must not import mapsum
+    back: the COLMAP map model both use lives below them, in rp_jax.sources.colmap_model."""
+    for path in sorted((ROOT / "rp_jax" / "localize").glob("*.py")):
+        imported = _imported_modules(path)
+        offending = sorted(m for m in imported if m.startswith("rp_jax.mapsum"))
+        assert not offending, f"{path.relative_to(ROOT)} imports {offending}"

@@ -22,7 +22,7 @@ from rp_jax.localize.matching import match_2d3d
 from rp_jax.localize.pnp import PoseEstimate, estimate_pose
 from rp_jax.localize.retrieval import GlobalIndex
 from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
-from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
     "LocalizationMap",

@@ -18,9 +18,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rp_jax.mapsum.colmap_io import MapPoints
 from rp_jax.mapsum.kcover import kcover_keep
 from rp_jax.mapsum.sampling import prune_by_score, repeatability_keep
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = ["METHODS", "most_observed_keep", "random_keep", "summarize"]
 

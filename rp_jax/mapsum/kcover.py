@@ -37,8 +37,8 @@ import heapq
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax.mapsum.colmap_io import MapPoints
 from rp_jax.mapsum.sampling import keep_count
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = ["distinctiveness_weights", "greedy_kcover", "kcover_keep"]
 

@@ -29,8 +29,8 @@ from tqdm.auto import tqdm
 from rp_jax import categories
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
-from rp_jax.mapsum.colmap_io import COLMAP_TO_OPENCV_PX, MapPoints, opencv_camera
 from rp_jax.sources import cmu_seasons, images
+from rp_jax.sources.colmap_model import COLMAP_TO_OPENCV_PX, MapPoints, opencv_camera
 
 __all__ = [
     "DatabaseObservations",

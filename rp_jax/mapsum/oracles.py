@@ -27,7 +27,7 @@ from collections.abc import Iterable, Mapping, Sequence
 import numpy as np
 
 from rp_jax.localize.matching import match_2d3d
-from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
     "agnostic_counts",

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = ["mean_per_point", "point_descriptors", "point_repeatability"]
 

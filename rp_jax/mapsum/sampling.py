@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
     "keep_count",

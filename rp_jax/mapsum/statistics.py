@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from rp_jax.mapsum.colmap_io import MapPoints
+from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
     "bootstrap_interval",

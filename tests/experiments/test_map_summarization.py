@@ -14,8 +14,8 @@ from experiments.map_summarization.__main__ import DEFAULT_SIZE, main, parse
 from experiments.map_summarization.train import rp_config
 from rp_jax.localize import read_submission
 from rp_jax.mapsum import MapPoints, read_model
-from rp_jax.mapsum.colmap_io import opencv_camera
 from rp_jax.mapsum.observations import point_categories, query_scores
+from rp_jax.sources.colmap_model import opencv_camera
 
 METHODS = [
     "rp_paper",

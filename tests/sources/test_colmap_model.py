@@ -1,10 +1,10 @@
-"""Tests of rp_jax.mapsum.colmap_io: COLMAP round trips and the MapPoints view."""
+"""Tests of rp_jax.sources.colmap_model: COLMAP round trips and the MapPoints view."""
 
 import numpy as np
 import pycolmap
 import pytest
 
-from rp_jax.mapsum import colmap_io
+from rp_jax.sources import colmap_model
 
 
 def _tiny_reconstruction(seed: int = 0, n_images: int = 4, n_points: int = 30):
@@ -45,7 +45,7 @@ def _tiny_reconstruction(seed: int = 0, n_images: int = 4, n_points: int = 30):
 
 def test_map_points_view_matches_reconstruction():
     rec, expected, keypoints = _tiny_reconstruction()
-    mp = colmap_io.map_points_from_reconstruction(rec)
+    mp = colmap_model.map_points_from_reconstruction(rec)
     assert mp.num_points == len(expected)
     assert mp.num_observations == sum(len(o) for _, _, o in expected)
     for pid, xyz, obs in expected:
@@ -65,12 +65,12 @@ def test_map_points_view_matches_reconstruction():
 @pytest.mark.parametrize("binary", [True, False])
 def test_model_round_trip(tmp_path, binary):
     rec, _expected, _ = _tiny_reconstruction(seed=1)
-    out = colmap_io.write_model(rec, tmp_path / "model", binary=binary)
+    out = colmap_model.write_model(rec, tmp_path / "model", binary=binary)
     ext = ".bin" if binary else ".txt"
     assert (out / f"points3D{ext}").is_file()
-    back = colmap_io.read_model(out)
-    a = colmap_io.map_points_from_reconstruction(rec)
-    b = colmap_io.map_points_from_reconstruction(back)
+    back = colmap_model.read_model(out)
+    a = colmap_model.map_points_from_reconstruction(rec)
+    b = colmap_model.map_points_from_reconstruction(back)
     np.testing.assert_array_equal(a.point3D_ids, b.point3D_ids)
     np.testing.assert_allclose(a.xyz, b.xyz, atol=1e-9)
     np.testing.assert_array_equal(a.obs_image_id, b.obs_image_id)
@@ -84,23 +84,23 @@ def test_model_round_trip(tmp_path, binary):
         )
     np.testing.assert_allclose(back.camera(1).params, rec.camera(1).params)
     # Writing again over an existing folder replaces it.
-    colmap_io.write_model(back, out, binary=binary)
-    assert colmap_io.read_model(out).num_points3D() == rec.num_points3D()
+    colmap_model.write_model(back, out, binary=binary)
+    assert colmap_model.read_model(out).num_points3D() == rec.num_points3D()
 
 
 def test_read_model_names_missing_files(tmp_path):
     with pytest.raises(FileNotFoundError, match="cameras/images/points3D"):
-        colmap_io.read_model(tmp_path)
+        colmap_model.read_model(tmp_path)
 
 
 @pytest.mark.parametrize("binary", [True, False])
 def test_summary_model_drops_points_and_clears_observations(tmp_path, binary):
     rec, _, _ = _tiny_reconstruction(seed=2)
-    mp = colmap_io.map_points_from_reconstruction(rec)
+    mp = colmap_model.map_points_from_reconstruction(rec)
     keep = np.zeros(mp.num_points, dtype=bool)
     keep[::3] = True
-    out = colmap_io.write_summary_model(rec, mp, keep, tmp_path / "summary", binary=binary)
-    summary = colmap_io.read_model(out)
+    out = colmap_model.write_summary_model(rec, mp, keep, tmp_path / "summary", binary=binary)
+    summary = colmap_model.read_model(out)
     assert set(summary.point3D_ids()) == set(mp.point3D_ids[keep].tolist())
     kept_ids = set(mp.point3D_ids[keep].tolist())
     n_obs = 0
@@ -111,7 +111,7 @@ def test_summary_model_drops_points_and_clears_observations(tmp_path, binary):
                 n_obs += 1
     assert n_obs == int(mp.observation_mask(keep).sum())
     assert rec.num_points3D() == mp.num_points  # the full map is untouched
-    sub = colmap_io.map_points_from_reconstruction(summary)
+    sub = colmap_model.map_points_from_reconstruction(summary)
     ref = mp.subset(keep)
     np.testing.assert_array_equal(sub.point3D_ids, ref.point3D_ids)
     np.testing.assert_array_equal(sub.obs_image_id, ref.obs_image_id)
@@ -120,20 +120,20 @@ def test_summary_model_drops_points_and_clears_observations(tmp_path, binary):
 
 def test_gather_observation_values():
     rec, _, _ = _tiny_reconstruction(seed=3)
-    mp = colmap_io.map_points_from_reconstruction(rec)
+    mp = colmap_model.map_points_from_reconstruction(rec)
     per_image = {
         image.name: np.arange(image.num_points2D())[:, None] * 10 + image_id
         for image_id, image in rec.images.items()
     }
-    got = colmap_io.gather_observation_values(mp, per_image)
+    got = colmap_model.gather_observation_values(mp, per_image)
     np.testing.assert_array_equal(got[:, 0], mp.obs_point2D_idx * 10 + mp.obs_image_id)
     del per_image["img_01.jpg"]
     with pytest.raises(KeyError, match="img_01.jpg"):
-        colmap_io.gather_observation_values(mp, per_image)
+        colmap_model.gather_observation_values(mp, per_image)
 
 
 def test_map_points_sorts_unsorted_observations():
-    mp = colmap_io.MapPoints(
+    mp = colmap_model.MapPoints(
         xyz=np.zeros((2, 3)),
         point3D_ids=[7, 9],
         obs_point=[1, 0, 1],
