@@ -367,6 +367,8 @@ _FIG11_STYLES = {
     "random": ("tab:gray", "^", "-"),
     "most_observed": ("tab:green", "D", "-"),
     "rp_kcover": ("tab:purple", "v", "-"),
+    "rp_cmu": ("tab:cyan", "P", "-"),
+    "rp_cmu_kcover": ("tab:olive", "X", "-"),
     "oracle_agnostic": ("black", "x", "--"),
     "oracle_date": ("tab:brown", "*", "--"),
 }
@@ -431,8 +433,14 @@ def plot_accuracy_vs_pruning(
         ax.set_title(f"queries localized within ({dist[:-1]} m, {ang[:-3]}°)")
         ax.set_xlabel("pruned 3D points (%)")
         ax.set_ylabel("localization accuracy (%)")
-        ax.set_ylim(-2, 102)
         ax.grid(alpha=0.3)
+    # The y axis starts a little below the lowest value drawn (0 at most), so that the
+    # differences at low pruning are readable.
+    lowest = min(
+        accuracy[m][r][th] for m in methods for r in accuracy[m] for th in thresholds
+    )
+    for ax in axes:
+        ax.set_ylim(max(-2.0, 10.0 * np.floor(lowest / 10.0) - 5.0), 102)
     axes[0].legend(loc="lower left", fontsize=7)
     if title:
         fig.suptitle(title)
