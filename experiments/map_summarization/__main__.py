@@ -66,8 +66,18 @@ def main(argv: list[str] | None = None) -> int:
 
     platform.configure_cpu()
     from experiments.map_summarization import experiment
+    from rp_jax.sources.layout import LayoutError
 
-    metrics = experiment.run(config, workdir)
+    try:
+        experiment.methods_of(config)  # a bad recipe name fails here, before any work
+    except ValueError as e:
+        print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
+        return 2
+    try:
+        metrics = experiment.run(config, workdir)
+    except LayoutError as e:  # a --data-dir that is not the dataset's layout
+        print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
+        return 2
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
     print(
         f"{metrics['queries']} queries, seeds {metrics['seeds']}; accuracy (%) within "

@@ -295,3 +295,10 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     # Every query was localized and written, posed or not.
     sub = read_submission(tmp_path / "run" / "seed0" / "submissions" / "full_map.txt")
     assert set(sub) - set(kept), "no unposed query in the submission"
+
+
+def test_a_bad_recipe_exits_2_before_any_work(tmp_path, capsys):
+    argv = ["--size", "tiny", "--workdir", str(tmp_path / "w"), "--config.map.rp_method=bogus"]
+    assert main(argv) == 2
+    assert "unknown RP recipe 'bogus'" in capsys.readouterr().err
+    assert not (tmp_path / "w").exists()
