@@ -261,10 +261,6 @@ def _fingerprint(config, params) -> str:
     return h.hexdigest()[:16]
 
 
-def _write_json_atomic(path: Path, payload) -> None:
-    experiment.write_json(path, payload)
-
-
 def evaluate_world(
     config: ml_collections.ConfigDict,
     seed: int,
@@ -453,6 +449,7 @@ def evaluate_world(
     coverage: dict[str, dict[str, list[float]]] = {k: {} for k in methods}
     kept_count: dict[str, dict[str, list[int]]] = {k: {} for k in methods}
     method_s = {k: 0.0 for k in methods}
+    kcover_kept = np.zeros(mp.num_points)  # K-cover's rank: the ratios a point is kept at
     bar = tqdm(
         total=len(ratios) * len(methods),
         desc=f"seed {seed} summaries",
@@ -467,6 +464,8 @@ def evaluate_world(
             shared = (
                 None if method in time_dependent else summary(method, ratio, next(iter(buckets)))
             )
+            if method == "kcover":
+                kcover_kept += shared
             est: dict[str, tuple | None] = {}
             res: list = [None] * len(queries)
             covs, kept = [], []
@@ -499,13 +498,12 @@ def evaluate_world(
     # AUC of each method's query-time score for ranking the full map's PnP inliers among
     # the points the retrieved images see (posed queries localized on the full map).
     # K-cover has no score: its rank is the number of ratios at which a point is kept.
-    kc_rank = sum(summary("kcover", r, next(iter(buckets))).astype(float) for r in ratios)
     auc: dict[str, dict[str, float | None]] = {}
     pairs: dict[str, list] = {k: [] for k in methods}
     labels: list[np.ndarray] = []
     pair_date: list[np.ndarray] = []
     for b, rows in buckets.items():
-        per_method = {k: (score(k, b) if k != "kcover" else kc_rank) for k in methods}
+        per_method = {k: (score(k, b) if k != "kcover" else kcover_kept) for k in methods}
         for i in rows:
             r = full_results[i]
             if not r.success:
@@ -561,7 +559,7 @@ def evaluate_world(
         },
         "timings": {k: round(v, 2) for k, v in timings.items()},
     }
-    _write_json_atomic(done, result)
+    experiment.write_json(done, result)
     return result
 
 
