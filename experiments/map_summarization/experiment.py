@@ -407,6 +407,20 @@ def evaluate_world(
         for b in buckets
     }
     track = mp.track_length.astype(np.float64)
+    # Scores that do not depend on the query's hour: once per world, or once per date.
+    random_score = np.random.default_rng(m.random_seed).permutation(mp.num_points).astype(float)
+    oracle_scores = {
+        ("oracle_agnostic", d): with_track_tiebreak(
+            agnostic_counts(inliers_by_date, d)
+            if len(query_dates) > 1
+            else np.zeros(mp.num_points),
+            mp,
+        )
+        for d in query_dates
+    }
+    oracle_scores.update(
+        {("oracle_date", d): with_track_tiebreak(redetected[d], mp) for d in query_dates}
+    )
 
     def score(method: str, b: dt.datetime) -> np.ndarray | None:
         """Query-time ranking score of a score-based method (None: a set method)."""
@@ -416,17 +430,8 @@ def evaluate_world(
         if method == "most_observed":
             return track
         if method == "random":
-            return np.random.default_rng(m.random_seed).permutation(mp.num_points).astype(float)
-        if method == "oracle_agnostic":
-            return with_track_tiebreak(
-                agnostic_counts(inliers_by_date, b.date())
-                if len(query_dates) > 1
-                else np.zeros(mp.num_points),
-                mp,
-            )
-        if method == "oracle_date":
-            return with_track_tiebreak(redetected[b.date()], mp)
-        return None
+            return random_score
+        return oracle_scores.get((method, b.date()))
 
     kcover_kwargs = {"K": m.kcover_K} if m.kcover_K > 0 else {}
 

@@ -663,8 +663,10 @@ REFERENCE_WEATHER = "clear"
 PAPER_REFERENCE_SLOT = dt.date(2011, 4, 21)
 # Recorded dates: the paper's 12 with the reference in its Apr 21 slot.
 CMU_RECORDED_DATES = tuple(REFERENCE_DATE if d == PAPER_REFERENCE_SLOT else d for d in CMU_DATES)
-# Local start time of a traversal, drawn uniformly in this range (hours): daylight on every
-# date of the year in Pittsburgh (the 21 December sun sets at 16:57 EST).
+# Local start time of a traversal, drawn uniformly in this range (hours). The real
+# traversals' hours are not published (DATA_FORMATS.md); this range is daylight on every date
+# of the year in Pittsburgh: on 21 December the sun (``sun.solar_position``) stands 11.3 deg
+# high at 9:00 and 7.9 deg at 16:00, and sets at 16:57 EST.
 CMU_HOURS = (9.0, 16.0)
 CMU_TIMEZONE = "America/New_York"
 CMU_LOCATION = (40.4406, -79.9959)  # Pittsburgh
