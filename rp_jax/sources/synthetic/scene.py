@@ -16,7 +16,8 @@ Every surface is a *quad*: ``origin`` (top-left corner of its texture), ``u`` (t
 columns, to the right as seen from the front) and ``v`` (texture rows, downwards). A point
 of texture coordinate (a, b) in [0, 1]^2 lies at ``origin + a u + b v`` and the outward
 normal is ``unit(v x u)``. Everything is deterministic from ``(seed, kwargs)``; parked cars
-change per capture day and hour block, passing cars and people per capture instant.
+come and go with the street's dwell times (``parked_car``), passing cars and people per
+capture instant.
 """
 
 from __future__ import annotations
@@ -928,6 +929,77 @@ def _hash_rng(*parts: int) -> np.random.Generator:
     return np.random.default_rng([int(p) & 0xFFFFFFFF for p in parts])
 
 
+# ---------------------------------------------------------------- parked cars: dwell times
+
+# How long a car stays in a curb slot depends on the street (modelling assumptions, stated
+# once here): on commercial streets curb space turns over within hours (customers, errands,
+# metered stays of one to two hours), on residential streets residents' cars stay overnight
+# and often for days, and a resident tends to park the same car at the same spot. Stays
+# are lognormal with these medians (hours) and log-sd; the slot's occupancy is the street's
+# (PARKING_OCCUPANCY); a slot alternates stays and empty gaps (an alternating renewal
+# process), simulated within blocks of PARKING_BLOCK_H hours from a stationary start.
+PARKING_STAY_MEDIAN_H = {"commercial": 1.5, "residential": 14.0}
+PARKING_STAY_LOG_SD = {"commercial": 0.8, "residential": 1.0}
+PARKING_BLOCK_H = {"commercial": 24.0, "residential": 7 * 24.0}
+RESIDENT_CAR_SHARE = 0.5  # residential stays by the resident's own car (same car, same slot)
+PARK_JITTER_M = 0.4  # a car parks within this distance of the slot's centre, along the curb
+
+
+def street_type(vegetation: float) -> str:
+    """"commercial" (urban shops, ``vegetation < 0.5`` as in ``build_scene``) or "residential"."""
+    return "commercial" if vegetation < 0.5 else "residential"
+
+
+def parking_occupancy(vegetation: float) -> float:
+    """Share of time a curb slot holds a car (denser in urban streets)."""
+    return 0.35 + 0.3 * (1.0 - vegetation)
+
+
+def parked_car(scene_seed: int, slot: int, vegetation: float, t_hours: float):
+    """The car in a curb slot at an instant: ``(variant, offset_m)`` or None when empty.
+
+    Args:
+      scene_seed: the world's seed.
+      slot: the slot id.
+      vegetation: the street's vegetation (its type, ``street_type``).
+      t_hours: the instant in hours on a continuous clock (e.g. UNIX seconds / 3600).
+
+    Deterministic in its arguments; the same stay gives the same car at the same place at
+    every instant it covers, so a parked car matches across the captures of its stay.
+    """
+    kind = street_type(vegetation)
+    median, sd = PARKING_STAY_MEDIAN_H[kind], PARKING_STAY_LOG_SD[kind]
+    block_h = PARKING_BLOCK_H[kind]
+    occ = parking_occupancy(vegetation)
+    mean_stay = median * float(np.exp(0.5 * sd * sd))
+    mean_gap = mean_stay * (1.0 - occ) / occ
+    block = int(np.floor(t_hours / block_h))
+    r = _hash_rng(scene_seed, 24, slot, block)
+    resident = int(_hash_rng(scene_seed, 25, slot).integers(0, N_CAR_VARIANTS))
+    clock = block * block_h
+    occupied = r.random() < occ
+    # Stationary start: a stay in progress has a residual part of a stay left.
+    remaining = (median * np.exp(sd * r.normal()) * r.random()) if occupied else (
+        r.exponential(mean_gap))
+    k = 0
+    while True:
+        if occupied and clock + remaining > t_hours:
+            own = kind == "residential" and r.random() < RESIDENT_CAR_SHARE
+            variant = resident if own else int(r.integers(0, N_CAR_VARIANTS))
+            return variant, float(r.uniform(-PARK_JITTER_M, PARK_JITTER_M))
+        if not occupied and clock + remaining > t_hours:
+            return None
+        # Draws a stay's car only when it is the one returned; skip its draws otherwise.
+        if occupied:
+            r.random(), r.integers(0, N_CAR_VARIANTS), r.uniform()
+        clock += remaining
+        occupied = not occupied
+        remaining = median * np.exp(sd * r.normal()) if occupied else r.exponential(mean_gap)
+        k += 1
+        if k > 10_000:  # cannot happen with positive stays; guards against a bad config
+            raise RuntimeError("parked_car: no end to the renewal process")
+
+
 def _traffic_rate(hour: float) -> float:
     """Cars per second per lane at a local hour: quiet at night, busy in the day."""
     day = np.exp(-0.5 * ((hour - 8.5) / 1.5) ** 2) + np.exp(-0.5 * ((hour - 17.5) / 2.0) ** 2)
@@ -935,7 +1007,7 @@ def _traffic_rate(hour: float) -> float:
 
 
 def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[int]]:
-    """Parked cars (per capture day and 4-hour block), passing cars and people (per instant).
+    """Parked cars (stays of the street's dwell times), passing cars and people (per instant).
 
     Args:
       scene: the world.
@@ -950,18 +1022,15 @@ def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[
     boxes = []
     alpha = []
     cars: list[QuadSet] = []
-    day = when.date().toordinal()
     hour = when.hour + when.minute / 60.0 + when.second / 3600.0
     obj = 50_000
-    # Parked cars: each slot's occupancy and car are drawn per (day, 4-hour block).
-    block = int(hour // 4)
-    occupancy = 0.35 + 0.3 * (1 - scene.vegetation)
+    # Parked cars: each slot alternates stays and gaps with the street's dwell times.
+    t_hours = when.timestamp() / 3600.0
     for x, y, sgn, sid in scene.parking_slots:
-        r = _hash_rng(scene.seed, 21, int(sid), day, block)
-        if r.random() < occupancy:
-            q, b = _car_instance(
-                tc, x, y, -sgn, int(r.integers(0, N_CAR_VARIANTS)), obj, moving=False
-            )
+        car = parked_car(scene.seed, int(sid), scene.vegetation, t_hours)
+        if car is not None:
+            variant, dx = car
+            q, b = _car_instance(tc, x + dx, y, -sgn, variant, obj, moving=False)
             cars.append(q)
             boxes += list(b)
         obj += 1
