@@ -19,8 +19,13 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "cmu_seasons"
     BUILDER_CONFIGS = builder.builder_configs(records_per_image=32)
-    VERSION = tfds.core.Version("1.3.0")
+    VERSION = tfds.core.Version("1.4.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.4.0": "Synthetic world version 4: parked cars stay as long as cars do on their "
+        "street (hours on commercial streets, overnight and days on residential ones, a "
+        "resident's own car back at its slot) instead of changing every 4 hours, and "
+        "window glass mirrors the sky (Fresnel reflectance of glass), so the synthetic "
+        "pixels and records change.",
         "1.3.0": "Real layouts: the query ground truth the release ships in "
         "slice{N}/camera-poses/*.txt is read, so the posed queries (the other dates) join "
         "the viewpoints, and the original CMU Seasons' ..._rect.jpg names are read. "

@@ -18,8 +18,13 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "robotcar"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.3.0")
+    VERSION = tfds.core.Version("1.4.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.4.0": "Synthetic world version 4: parked cars stay as long as cars do on their "
+        "street (hours on commercial streets, overnight and days on residential ones, a "
+        "resident's own car back at its slot) instead of changing every 4 hours, and "
+        "window glass mirrors the sky (Fresnel reflectance of glass), so the synthetic "
+        "pixels and records change.",
         "1.3.0": "Synthetic world version 3 (an older rendering is rendered again): brick "
         "walls, lawns, lawn paths and flat roofs are textured with real photographs of brick, "
         "grass and gravel (scikit-image's, CC0; windows, signs and snow where they were), so "

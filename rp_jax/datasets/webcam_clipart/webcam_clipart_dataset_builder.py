@@ -18,8 +18,13 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "webcam_clipart"
     BUILDER_CONFIGS = builder.builder_configs()
-    VERSION = tfds.core.Version("1.3.0")
+    VERSION = tfds.core.Version("1.4.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.4.0": "Synthetic world version 4: parked cars stay as long as cars do on their "
+        "street (hours on commercial streets, overnight and days on residential ones, a "
+        "resident's own car back at its slot) instead of changing every 4 hours, and "
+        "window glass mirrors the sky (Fresnel reflectance of glass), so the synthetic "
+        "pixels and records change.",
         "1.3.0": "File names on their own clock, as the real releases (AMOS: UTC; the author's "
         "sample: US/Eastern whatever the camera's zone): the reader converts them to the "
         "camera's zone for the slots and reads the author's MATLAB v7.3 .mat sun angles. "

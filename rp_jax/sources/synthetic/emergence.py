@@ -50,6 +50,8 @@ __all__ = [
     "detect",
     "redetected",
     "redetection_rate",
+    "movers_mask",
+    "away_from_movers",
     "shadow_boundary",
     "measure",
     "plot",
@@ -123,6 +125,32 @@ def _luminance(rgb: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(g, (0, 0), 1.5)
 
 
+def movers_mask(category: np.ndarray, movers_px: int) -> np.ndarray:
+    """Pixels within ``movers_px`` of a car or person (category VEHICLE or OTHER).
+
+    Parked cars come and go with their dwell times (``scene.parked_car``) and people walk
+    by, so what they cover or shade differs between two captures for reasons that are not
+    light; the light effects below are measured away from them.
+    """
+    movers = np.isin(category, (categories.VEHICLE, categories.OTHER)).astype(np.uint8)
+    if movers_px <= 0:
+        return movers > 0
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * movers_px + 1, 2 * movers_px + 1))
+    return cv2.dilate(movers, k) > 0
+
+
+def away_from_movers(kp: np.ndarray, *categories_maps: np.ndarray, movers_px: int) -> np.ndarray:
+    """Keypoints of ``kp`` (N, 2) that no car or person covers or borders in any of the maps."""
+    if len(kp) == 0:
+        return np.zeros(0, bool)
+    h, w = categories_maps[0].shape
+    xi = np.clip(np.round(kp).astype(int), 0, [w - 1, h - 1])
+    ok = np.ones(len(kp), bool)
+    for cat in categories_maps:
+        ok &= ~movers_mask(cat, movers_px)[xi[:, 1], xi[:, 0]]
+    return ok
+
+
 def shadow_boundary(
     rgb: np.ndarray,
     day_frames: list[np.ndarray],
@@ -152,9 +180,7 @@ def shadow_boundary(
     """
     ground = category == categories.GROUND
     if movers_px > 0:  # parked cars and people change between captures, and so do their shadows
-        movers = np.isin(category, (categories.VEHICLE, categories.OTHER)).astype(np.uint8)
-        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * movers_px + 1, 2 * movers_px + 1))
-        ground &= cv2.dilate(movers, k) == 0
+        ground &= ~movers_mask(category, movers_px)
     if not ground.any():
         z = np.zeros(category.shape, bool)
         return z, z
@@ -233,8 +259,11 @@ def default_setup(
         height=height,
         fov_deg=75.0,
     )
+    # Above the north front yard (an upper-floor window), so that the curb lane below is in
+    # the frame: a car parked out of the frame would shade the ground in view, and parked
+    # cars stay for hours (scene.parked_car), which is not the sun moving.
     street_view = look_at(
-        (28.0, scene.sidewalk_y[1], 6.0),
+        (28.0, scene.sidewalk_y[1] + 4.0, 8.0),
         (36.0, scene.facade_y[0], 2.0),
         width=width,
         height=height,
@@ -302,9 +331,8 @@ def _render_all(setup: EmergenceSetup, progress: bool) -> dict:
     jobs = [("a", h, _at(setup.day_a, h)) for h in setup.hours]
     jobs += [("b", h, _at(setup.day_b, h)) for h in setup.hours_b]
     jobs += [("w", 12.0, _at(setup.winter_day, 12.0))]
-    jobs += [("sa", h, _at(setup.day_a, h)) for h in _daylight(setup.hours)] + [
-        ("sb", 10.0, _at(setup.day_b, 10.0))
-    ]
+    jobs += [("sa", h, _at(setup.day_a, h)) for h in _daylight(setup.hours)]
+    jobs += [("sb", h, _at(setup.day_b, h)) for h in _daylight(setup.hours)]
     frames = {}
     for n, (tag, h, when) in enumerate(
         tqdm(jobs, desc="emergence: render + SIFT", disable=not progress)
@@ -344,49 +372,69 @@ def measure(setup: EmergenceSetup, *, progress: bool = True) -> tuple[EmergentEf
         else [0.0, 0.0]
         for h in setup.hours
     ]
+    mp = _movers_px(W)
+
+    def light_rate(ref, target, select=None):
+        # Keypoints away from cars and people in both frames: the effects of light alone.
+        (f_ref, k_ref), (f_tgt, k_tgt) = ref, target
+        keep = away_from_movers(k_ref, f_ref.category, f_tgt.category, movers_px=mp)
+        return redetection_rate(k_ref, k_tgt, keep if select is None else keep & select)
+
     # Same day, hours apart (references: the daylight hours 9-15 of day A).
     dts, rates = [], []
     for h0 in [h for h in setup.hours if 9 <= h <= 15]:
         for h1 in setup.hours:
             if h1 != h0 and 5 <= h1 <= 21:
                 dts.append(abs(h1 - h0))
-                rates.append(redetection_rate(a[h0][1], a[h1][1]))
-    other = {h: redetection_rate(a[h][1], b[h][1]) for h in setup.hours if h in b}
+                rates.append(light_rate(a[h0], a[h1]))
+    other = {h: light_rate(a[h], b[h]) for h in setup.hours if h in b}
     # Facades: midday keypoints, re-detected at midday and at dusk of another day.
     f12, k12 = a[12.0]
     cat12 = category_of(k12, f12.category)
     bld = cat12 == categories.BUILDING
     facade = {
-        "midday_other_day": redetection_rate(k12, b[12.0][1], bld),
-        "dusk_other_day": redetection_rate(k12, b[DUSK_HOUR][1], bld),
+        "midday_other_day": light_rate(a[12.0], b[12.0], bld),
+        "dusk_other_day": light_rate(a[12.0], b[DUSK_HOUR], bld),
         "n": int(bld.sum()),
     }
-    # Shadow boundaries on the ground at 10:00 (street view), found from day A's daylight frames.
-    f10, k10 = fr[("sa", 10.0)]
-    daylight = [fr[("sa", h)][0].rgb for h in _daylight(setup.hours) if h != 10.0]
-    _, boundary = shadow_boundary(f10.rgb, daylight, f10.category, movers_px=_movers_px(W))
-    cat10 = category_of(k10, f10.category)
-    xi = (
-        np.clip(np.round(k10).astype(int), 0, [W - 1, H - 1]) if len(k10) else np.zeros((0, 2), int)
-    )
-    on_edge = boundary[xi[:, 1], xi[:, 0]] if len(k10) else np.zeros(0, bool)
-    interior = (
-        cat10 == categories.GROUND
-    ) & ~on_edge  # (ground keypoints away from shadow boundaries)
-    k15, k10b = fr[("sa", 15.0)][1], fr[("sb", 10.0)][1]
+    # Shadow boundaries on the ground at 10:00 (street view), found from each day's daylight
+    # frames; pooled over both days as reference (day A vs B and day B vs A), since a view
+    # holds only a handful of keypoints on a shadow edge.
+    tally = {k: [0, 0] for k in ("edge_same", "edge_other", "int_same", "int_other")}
+
+    def add(key, ref, target, select):
+        keep = away_from_movers(ref[1], ref[0].category, target[0].category, movers_px=mp)
+        hit = redetected(ref[1], target[1])[keep & select]
+        tally[key][0] += int(hit.sum())
+        tally[key][1] += int(hit.size)
+
+    for day, other_day in (("sa", "sb"), ("sb", "sa")):
+        f10, k10 = fr[(day, 10.0)]
+        daylight = [fr[(day, h)][0].rgb for h in _daylight(setup.hours) if h != 10.0]
+        _, boundary = shadow_boundary(f10.rgb, daylight, f10.category, movers_px=mp)
+        xi = np.clip(np.round(k10).astype(int), 0, [W - 1, H - 1]).reshape(-1, 2)
+        on_edge = boundary[xi[:, 1], xi[:, 0]]
+        interior = (category_of(k10, f10.category) == categories.GROUND) & ~on_edge
+        for key, select in (("edge", on_edge), ("int", interior)):
+            add(f"{key}_same", fr[(day, 10.0)], fr[(day, 15.0)], select)
+            add(f"{key}_other", fr[(day, 10.0)], fr[(other_day, 10.0)], select)
+
+    def rate(key):
+        hits, n = tally[key]
+        return hits / n if n else float("nan")
+
     shadow_edge = {
-        "at_15h_same_day": redetection_rate(k10, k15, on_edge),
-        "at_10h_other_day": redetection_rate(k10, k10b, on_edge),
-        "n": int(on_edge.sum()),
-        "interior_at_15h_same_day": redetection_rate(k10, k15, interior),
-        "interior_at_10h_other_day": redetection_rate(k10, k10b, interior),
+        "at_15h_same_day": rate("edge_same"),
+        "at_10h_other_day": rate("edge_other"),
+        "n": tally["edge_same"][1],
+        "interior_at_15h_same_day": rate("int_same"),
+        "interior_at_10h_other_day": rate("int_other"),
     }
     # Trees: July keypoints on VEGETATION, in July (another day) and in January.
     veg = cat12 == categories.VEGETATION
-    kw = fr[("w", 12.0)][1]
     vegetation = {
-        "july_other_day": redetection_rate(k12, b[12.0][1], veg),
-        "january": redetection_rate(k12, kw, veg),
+        "july_other_day": light_rate(a[12.0], b[12.0], veg),
+        "january": light_rate(a[12.0], fr[("w", 12.0)], veg),
         "n": int(veg.sum()),
     }
     veh = cat12 == categories.VEHICLE

@@ -46,6 +46,7 @@ FOLIAGE_SWAY_M = (0.02, 0.004)
 FOLIAGE_CLUSTER_M = 0.35
 CLOUD_ALTITUDE = 1500.0
 _CLOUD_M_PER_TEXEL = 12.0
+GLASS_F0 = 0.04  # normal-incidence reflectance of glass, ((n - 1) / (n + 1))^2 with n = 1.5
 LAMP_POWER = 0.25  # street-lamp intensity: about 6e-3 under a lamp, 1/150 of the noon sun
 
 
@@ -653,6 +654,49 @@ def _srgb_to_linear_lut() -> np.ndarray:
 _LIN = _srgb_to_linear_lut()
 
 
+def _reflect_sky_in_glass(
+    rad: np.ndarray,
+    gbuf,
+    quads: QuadSet,
+    qfull: np.ndarray,
+    Kc_inv: np.ndarray,
+    R: np.ndarray,
+    C: np.ndarray,
+    cond: condlib.Conditions,
+    scene_seed: int,
+) -> None:
+    """Window glass mirrors the sky it faces, in place on ``rad`` (H, W, 3) radiance.
+
+    A window pane is a dielectric mirror: it reflects the fraction F of the radiance coming
+    from the mirrored view direction and transmits the rest (the room behind, the glass
+    texture). F follows Fresnel's equations in Schlick's approximation for glass (refractive
+    index 1.5: F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04, F = F0 + (1 - F0)(1 - cos)^5). What
+    the pane mirrors is the sky model of ``_sky`` (its clouds and the sun's disc: a glint
+    when the sun stands in the mirrored direction) or, below the horizon, the street's dim
+    horizon colour. Glass is the facade's texels marked as glass (aux >= 128).
+    """
+    mat_code = np.append(quads.material, -1).astype(np.int8)
+    glass_ss = (np.take(mat_code, gbuf.qid) == Material.FACADE) & (gbuf.albedo[..., 3] >= 128)
+    if not glass_ss.any():
+        return
+    Hc, Wc = rad.shape[:2]
+    glass = cv2.resize(glass_ss.astype(np.float32), (Wc, Hc), interpolation=cv2.INTER_AREA)
+    ys, xs = np.nonzero((glass > 0) & (qfull < quads.n))
+    if len(ys) == 0:
+        return
+    pix = np.stack([xs, ys, np.ones_like(xs)], -1).astype(np.float64)
+    d = pix @ (Kc_inv.T @ R)  # world view directions
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    n = quads.normal[qfull[ys, xs]]
+    cos = np.clip(-(d * n).sum(1), 0.0, 1.0)
+    fresnel = GLASS_F0 + (1.0 - GLASS_F0) * (1.0 - cos) ** 5
+    mirrored = d + 2.0 * cos[:, None] * n
+    mirrored /= np.linalg.norm(mirrored, axis=1, keepdims=True)
+    sky = _sky(cond, mirrored, C, scene_seed)
+    w = (fresnel * glass[ys, xs]).astype(np.float32)[:, None]
+    rad[ys, xs] = rad[ys, xs] * (1.0 - w) + w * sky
+
+
 def _window_threshold(
     n_owners: int, scene_seed: int, day: int, hour: float, prob: float
 ) -> np.ndarray:
@@ -826,6 +870,7 @@ def render(
     if emis_ss is not None:
         emis = cv2.resize(emis_ss, size, interpolation=cv2.INTER_AREA)
         rad += emis[..., None] * (np.float32([1.0, 0.8, 0.55]) * 0.5 + alb * 2.0)
+    _reflect_sky_in_glass(rad, gbuf, quads, qfull, Kc_inv, R, C, cond, scene.seed)
     rows = np.flatnonzero(skyfrac.max(1) > 0)
     if len(rows):
         # The sky is smooth: evaluate it on every other pixel and interpolate.
