@@ -14,66 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
+
 __all__ = [
     "quaternion_to_rotation",
     "read_submission",
     "rotation_to_quaternion",
     "write_submission",
 ]
-
-
-def rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z), ``w >= 0``, of a rotation matrix."""
-    R = np.asarray(R, dtype=np.float64).reshape(3, 3)
-    # The symmetric 4x4 matrix whose top eigenvector is the quaternion (robust for any R).
-    m = R
-    Kq = (
-        np.array(
-            [
-                [
-                    m[0, 0] - m[1, 1] - m[2, 2],
-                    m[1, 0] + m[0, 1],
-                    m[2, 0] + m[0, 2],
-                    m[2, 1] - m[1, 2],
-                ],
-                [
-                    m[1, 0] + m[0, 1],
-                    m[1, 1] - m[0, 0] - m[2, 2],
-                    m[2, 1] + m[1, 2],
-                    m[0, 2] - m[2, 0],
-                ],
-                [
-                    m[2, 0] + m[0, 2],
-                    m[2, 1] + m[1, 2],
-                    m[2, 2] - m[0, 0] - m[1, 1],
-                    m[1, 0] - m[0, 1],
-                ],
-                [
-                    m[2, 1] - m[1, 2],
-                    m[0, 2] - m[2, 0],
-                    m[1, 0] - m[0, 1],
-                    m[0, 0] + m[1, 1] + m[2, 2],
-                ],
-            ]
-        )
-        / 3.0
-    )
-    vals, vecs = np.linalg.eigh(Kq)
-    x, y, z, w = vecs[:, np.argmax(vals)]
-    q = np.array([w, x, y, z])
-    return q if q[0] >= 0 else -q
-
-
-def quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a quaternion (w, x, y, z) (normalised first)."""
-    w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def write_submission(

@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from rp_jax.rotations import quaternion_to_rotation
 from rp_jax.schedule import TimeSchedule, load_spec, preset
 from rp_jax.sources import images, viewpoints
 from rp_jax.sources.capture import Camera, Capture
@@ -147,25 +148,9 @@ def read_intrinsics(path: Path) -> dict[str, Camera]:
     return cameras
 
 
-def quaternion_to_rotation(qw: float, qx: float, qy: float, qz: float) -> np.ndarray:
-    """Rotation matrix of a (normalised) Hamilton quaternion, scalar first (COLMAP)."""
-    q = np.array([qw, qx, qy, qz], dtype=np.float64)
-    n = np.linalg.norm(q)
-    if n == 0:
-        raise ValueError("zero quaternion")
-    w, x, y, z = q / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def pose_from_ground_truth(q_wxyz: Sequence[float], centre: Sequence[float]):
     """World-to-camera (R, t) of a ground-truth line: R from the quaternion, t = -R C."""
-    R = quaternion_to_rotation(*q_wxyz)
+    R = quaternion_to_rotation(q_wxyz)
     return R, -R @ np.asarray(centre, dtype=np.float64)
 
 

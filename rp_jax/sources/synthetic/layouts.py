@@ -36,6 +36,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
 from rp_jax.sources.capture import Camera
 
 __all__ = [
@@ -154,43 +155,6 @@ def write_image_atomic(path: Path, image: np.ndarray, *, jpeg_quality: int = 92)
 
 
 # --------------------------------------------------------------------------- geometry helpers
-
-
-def rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``(qw, qx, qy, qz)`` of a rotation matrix, with ``qw >= 0``.
-
-    Hamilton convention, as COLMAP and the CMU Seasons ground-truth files use.
-    """
-    R = np.asarray(R, dtype=np.float64).reshape(3, 3)
-    m = R
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.asarray(q)
-    q /= np.linalg.norm(q)
-    return -q if q[0] < 0 else q
-
-
-def quaternion_to_rotation(q: Sequence[float]) -> np.ndarray:
-    """Rotation matrix of a quaternion ``(qw, qx, qy, qz)`` (normalised first)."""
-    w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def unix_microseconds(when: dt.datetime) -> int:
