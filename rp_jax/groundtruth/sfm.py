@@ -76,6 +76,8 @@ def reconstruct_viewpoint(
     """
     import pycolmap
 
+    from rp_jax.sources.colmap_model import colmap_xy
+
     n = len(names)
     if n < 2:
         return None
@@ -91,7 +93,7 @@ def reconstruct_viewpoint(
                 model="PINHOLE",
                 width=int(w),
                 height=int(h),
-                params=[K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5],
+                params=[K[0, 0], K[1, 1], *colmap_xy(K[:2, 2])],
             )
             cam_id = db.write_camera(cam)
             sensor = pycolmap.sensor_t(pycolmap.SensorType.CAMERA, cam_id)
@@ -103,7 +105,7 @@ def reconstruct_viewpoint(
             frame.rig_id = rig_id
             frame.add_data_id(pycolmap.data_t(sensor, image_id))
             db.write_frame(frame)
-            db.write_keypoints(image_id, (np.asarray(xy, np.float32) + 0.5).reshape(-1, 2))
+            db.write_keypoints(image_id, colmap_xy(xy).astype(np.float32).reshape(-1, 2))
             ids.append(image_id)
         pairs = []
         for a in range(n):

@@ -30,7 +30,7 @@ from rp_jax import categories
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
 from rp_jax.sources import cmu_seasons, images
-from rp_jax.sources.colmap_model import COLMAP_TO_OPENCV_PX, MapPoints, opencv_camera
+from rp_jax.sources.colmap_model import MapPoints, opencv_camera, opencv_xy
 
 __all__ = [
     "DatabaseObservations",
@@ -142,7 +142,7 @@ def describe_observations(
         sel = groups.get(int(image_id))
         if sel is None:
             continue
-        xy_stored = map_points.obs_xy[sel] + COLMAP_TO_OPENCV_PX
+        xy_stored = opencv_xy(map_points.obs_xy[sel])
         xy = (
             cv2.undistortPoints(xy_stored[:, None, :], K, dist, P=K).reshape(-1, 2)
             if distorted

@@ -36,6 +36,8 @@ __all__ = [
     "MapPoints",
     "COLMAP_TO_OPENCV_PX",
     "camera_matrix",
+    "colmap_xy",
+    "opencv_xy",
     "gather_observation_values",
     "opencv_camera",
     "map_points_from_reconstruction",
@@ -48,6 +50,16 @@ __all__ = [
 _MODEL_FILES = ("cameras", "images", "points3D")
 # COLMAP pixel coordinates put the top-left pixel's centre at (0.5, 0.5), OpenCV's at (0, 0).
 COLMAP_TO_OPENCV_PX = -0.5
+
+
+def opencv_xy(xy_colmap) -> np.ndarray:
+    """Pixel coordinates (or a principal point) from COLMAP's convention to OpenCV's."""
+    return np.asarray(xy_colmap, np.float64) + COLMAP_TO_OPENCV_PX
+
+
+def colmap_xy(xy_opencv) -> np.ndarray:
+    """Pixel coordinates (or a principal point) from OpenCV's convention to COLMAP's."""
+    return np.asarray(xy_opencv, np.float64) - COLMAP_TO_OPENCV_PX
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,8 +238,7 @@ def opencv_camera(colmap_camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarra
     principal point moves by -0.5 px (``COLMAP_TO_OPENCV_PX``).
     """
     K = np.asarray(colmap_camera.calibration_matrix(), np.float64).copy()
-    K[0, 2] += COLMAP_TO_OPENCV_PX
-    K[1, 2] += COLMAP_TO_OPENCV_PX
+    K[:2, 2] = opencv_xy(K[:2, 2])
     model = (
         colmap_camera.model.name
         if hasattr(colmap_camera.model, "name")

@@ -144,3 +144,11 @@ def test_map_points_sorts_unsorted_observations():
     np.testing.assert_array_equal(mp.obs_point, [0, 1, 1])
     np.testing.assert_array_equal(mp.obs_image_id, [2, 1, 3])
     np.testing.assert_array_equal(mp.track_offsets, [0, 1, 3])
+
+
+def test_pixel_conventions_by_hand():
+    from rp_jax.sources.colmap_model import colmap_xy, opencv_xy
+
+    # The top-left pixel's centre: (0, 0) for OpenCV, (0.5, 0.5) for COLMAP.
+    np.testing.assert_array_equal(colmap_xy([[0.0, 0.0], [9.0, 4.0]]), [[0.5, 0.5], [9.5, 4.5]])
+    np.testing.assert_array_equal(opencv_xy([0.5, 0.5]), [0.0, 0.0])

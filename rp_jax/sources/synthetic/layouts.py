@@ -38,6 +38,7 @@ import numpy as np
 
 from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
 from rp_jax.sources.capture import Camera
+from rp_jax.sources.colmap_model import colmap_xy
 
 __all__ = [
     "BAYER_TO_RGB",
@@ -441,7 +442,7 @@ class ColmapPoint:
 
 def _colmap_camera_line(camera_id: int, cam: Camera) -> str:
     fx, fy = cam.K[0, 0], cam.K[1, 1]
-    cx, cy = cam.K[0, 2] + 0.5, cam.K[1, 2] + 0.5  # COLMAP pixel convention
+    cx, cy = colmap_xy(cam.K[:2, 2])
     if cam.model == "PINHOLE" or cam.distortion.size == 0:
         return f"{camera_id} PINHOLE {cam.width} {cam.height} {fx:.6f} {fy:.6f} {cx:.6f} {cy:.6f}"
     k = np.zeros(4)
@@ -487,7 +488,7 @@ def write_colmap_text(
             + " ".join(f"{v:.12f}" for v in (*q, *t))
             + f" {im.camera_id} {im.name}\n"
         )
-        kps = np.asarray(im.keypoints, dtype=np.float64).reshape(-1, 2) + 0.5
+        kps = colmap_xy(im.keypoints).reshape(-1, 2)
         ids = np.asarray(im.point3d_ids, dtype=np.int64).reshape(-1)
         img_buf.write(" ".join(f"{x:.4f} {y:.4f} {int(p)}" for (x, y), p in zip(kps, ids)) + "\n")
 
