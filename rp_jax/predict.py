@@ -36,15 +36,19 @@ from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
 from rp_jax.platform import make_mesh
 
-__all__ = ["Predictor", "load", "repeatability", "at_time", "encode_times"]
+__all__ = ["Predictor", "load", "repeatability", "check_inputs", "at_time", "encode_times"]
 
 
 def repeatability(params, patches, xy, time_features, *, config) -> jax.Array:
     """RP of Sec. III-B as a pure function.
 
+    Inputs are checked by ``check_inputs`` (the same checks ``Predictor.__call__`` makes):
+    shapes always, values whenever they are concrete arrays (under ``jit``, ``vmap`` or
+    ``grad`` only shapes can be checked, values are the caller's responsibility).
+
     Args:
       params: the ``params`` pytree of a trained predictor (``Predictor.params``).
-      patches: [N, 64, 64, 3] uint8 in [0, 255] or float in [0, 1].
+      patches: [N, 64, 64, 3] integers (any integer dtype) in [0, 255], or floats in [0, 1].
       xy: [N, 2] keypoint coordinates normalised by the image size to [0, 1].
       time_features: [N, d] encoded capture times (``encode_times`` or
         ``rp_jax.time_encoding.encode``).
@@ -52,15 +56,90 @@ def repeatability(params, patches, xy, time_features, *, config) -> jax.Array:
 
     Returns:
       [N, T] float32 repeatability scores in (0, 1).
+
+    Raises:
+      ValueError: an input has the wrong shape or (when concrete) values outside its range;
+        the message names the argument, the expected range and what it got.
     """
     T = params["fc6"]["bias"].shape[-1]
     net = model_lib.create_model(config, T)
     patches = jnp.asarray(patches)
+    xy, time_features = jnp.asarray(xy), jnp.asarray(time_features)
+    check_inputs(patches, xy, time_features, config=config)
     if jnp.issubdtype(patches.dtype, jnp.integer):
         x = model_lib.preprocess_patches(patches)
     else:
         x = patches.astype(jnp.float32) - 0.5
-    return net.apply({"params": params}, x, jnp.asarray(xy), jnp.asarray(time_features))
+    return net.apply({"params": params}, x, xy, time_features)
+
+
+def _concrete(a) -> np.ndarray | None:
+    """``a`` as a numpy array, or None when it is a tracer (its values are not known yet)."""
+    if isinstance(a, jax.core.Tracer):
+        return None
+    return np.asarray(a)
+
+
+def _range_of(a: np.ndarray) -> str:
+    return f"[{a.min():g}, {a.max():g}]" if a.size else "no values"
+
+
+def check_inputs(patches, xy, time_features, *, config) -> None:
+    """The one validation of the predictor's inputs, shared by both public APIs.
+
+    Shapes and dtypes are always checked; values are checked when the arrays are concrete.
+
+    Args:
+      patches: [N, 64, 64, 3], integers in [0, 255] or floats in [0, 1].
+      xy: [N, 2] normalised coordinates in [0, 1].
+      time_features: [N, d] encoded times, d and value range given by ``config``.
+      config: the run's config (``time_fields``, ``time_encoding``).
+
+    Raises:
+      ValueError: naming the argument, what was expected and what it got.
+    """
+    if patches.ndim != 4 or tuple(patches.shape[1:]) != (64, 64, 3):
+        raise ValueError(f"patches must be [N, 64, 64, 3], got shape {tuple(patches.shape)}")
+    n = patches.shape[0]
+    if not (jnp.issubdtype(patches.dtype, jnp.integer)
+            or jnp.issubdtype(patches.dtype, jnp.floating)):
+        raise ValueError(f"patches must be integers in [0, 255] or floats in [0, 1], "
+                         f"got dtype {patches.dtype}")
+    if tuple(xy.shape) != (n, 2):
+        raise ValueError(f"xy must be [N, 2] = [{n}, 2], got shape {tuple(xy.shape)}")
+    d = time_encoding.num_features(config.time_fields)
+    if tuple(time_features.shape) != (n, d):
+        raise ValueError(f"times must be N={n} datetimes or an [N, {d}] array "
+                         f"(time_fields={config.time_fields!r}), "
+                         f"got shape {tuple(time_features.shape)}")
+    p, x, t = _concrete(patches), _concrete(xy), _concrete(time_features)
+    if p is not None:
+        if np.issubdtype(p.dtype, np.floating):
+            if not np.all(np.isfinite(p)):
+                raise ValueError("patches contains NaN or infinite values")
+            if p.size and (p.min() < 0 or p.max() > 1):
+                hint = (" (0-255 pixel values: pass them as uint8, or divide by 255)"
+                        if p.max() > 1 else "")
+                raise ValueError(f"float patches must be in [0, 1], got values in "
+                                 f"{_range_of(p)}{hint}")
+        elif p.size and (p.min() < 0 or p.max() > 255):
+            raise ValueError(f"integer patches must be in [0, 255], got values in "
+                             f"{_range_of(p)} (dtype {p.dtype})")
+    if x is not None:
+        if not np.all(np.isfinite(x)):
+            raise ValueError("xy contains NaN or infinite values")
+        if x.size and (x.min() < 0 or x.max() > 1):
+            raise ValueError(f"xy must be normalised to [0, 1] (x / W, y / H), got values in "
+                             f"{_range_of(x)}; for pixel coordinates pass image_size=(W, H) "
+                             "to Predictor.__call__, or divide by (W, H)")
+    if t is not None:
+        if not np.all(np.isfinite(t)):
+            raise ValueError("times contains NaN or infinite values")
+        lo, hi = (0.0, 1.0) if config.time_encoding == "raw" else (-1.0, 1.0)
+        if t.size and (t.min() < lo - 1e-6 or t.max() > hi + 1e-6):
+            raise ValueError(f"encoded times ({config.time_encoding!r} encoding) must be in "
+                             f"[{lo:g}, {hi:g}], got values in {_range_of(t)}; encode "
+                             "datetimes with predict.encode_times")
 
 
 def encode_times(times: Sequence[dt.datetime], config) -> np.ndarray:
@@ -143,38 +222,34 @@ class Predictor:
         """Repeatability vectors of N interest points.
 
         Args:
-          patches: [N, 64, 64, 3], uint8 (0-255) or float (0-1).
-          xy: [N, 2] pixel coordinates (x, y) if ``image_size`` is given, else already
-            normalised to [0, 1].
-          times: N datetimes (local wall clock), or an [N, d] array of encoded times.
+          patches: [N, 64, 64, 3], integers of any dtype in [0, 255] (read as uint8
+            pixels) or floats in [0, 1].
+          xy: [N, 2] pixel coordinates (x, y) in [0, W] x [0, H] if ``image_size`` is
+            given, else already normalised to [0, 1].
+          times: N datetimes (local wall clock) within the schedule's span, or an [N, d]
+            array of encoded times.
           image_size: (W, H) of the images the keypoints come from.
 
         Returns:
           [N, T] float32 numpy array.
+
+        Raises:
+          ValueError: an input of the wrong shape, dtype or range (see ``check_inputs``);
+            the message names the argument, what was expected and what it got.
         """
         patches = np.asarray(patches)
-        if patches.ndim != 4 or patches.shape[1:] != (64, 64, 3):
-            raise ValueError(f"patches must be [N, 64, 64, 3], got shape {patches.shape}")
-        n = len(patches)
-        xy = np.asarray(xy, np.float32)
-        if xy.shape != (n, 2):
-            raise ValueError(f"xy must be [N, 2] = [{n}, 2], got shape {xy.shape}")
+        xy = np.asarray(xy)
+        if not np.issubdtype(xy.dtype, np.number):
+            raise ValueError(f"xy must be a numeric [N, 2] array, got dtype {xy.dtype}")
+        xy = xy.astype(np.float32)
         if image_size is not None:
-            w, h = image_size
-            xy = xy / np.array([w, h], np.float32)
-        if isinstance(times, np.ndarray) and times.dtype != object:
-            feats = times.astype(np.float32)
-        else:
-            feats = encode_times(list(times), self.config)
-        d = time_encoding.num_features(self.config.time_fields)
-        if feats.shape != (n, d):
-            raise ValueError(f"times must be N={n} datetimes or an [N, {d}] array, "
-                             f"got shape {feats.shape}")
-        for name, arr in (("patches", patches), ("xy", xy), ("times", feats)):
-            if np.issubdtype(arr.dtype, np.floating) and not np.all(np.isfinite(arr)):
-                raise ValueError(f"{name} contains NaN or infinite values")
-        if patches.dtype != np.uint8:
-            patches = patches.astype(np.float32)
+            xy = self._normalise_pixels(xy, image_size)
+        feats = self._time_features(times, len(patches) if patches.ndim else 0)
+        check_inputs(patches, xy, feats, config=self.config)
+        n = len(patches)
+        # Any integer dtype holding 0-255 is read as uint8 pixels (not as floats in [0, 1]).
+        patches = (patches.astype(np.uint8) if np.issubdtype(patches.dtype, np.integer)
+                   else patches.astype(np.float32))
         out = np.empty((n, self.num_timestamps), np.float32)
         bs = self.batch_size
         for s in range(0, n, bs):
@@ -184,6 +259,71 @@ class Predictor:
                   for a in (patches, xy, feats)]
             out[s:e] = np.asarray(self._fn(self._device_params, *sl))[: e - s]
         return out
+
+    @staticmethod
+    def _normalise_pixels(xy: np.ndarray, image_size) -> np.ndarray:
+        """Pixel (x, y) in a W x H image -> [0, 1], refusing a size the points do not fit."""
+        size = np.asarray(image_size)
+        if (size.shape != (2,) or not np.issubdtype(size.dtype, np.number)
+                or not np.all(np.isfinite(size)) or np.any(size <= 0)):
+            raise ValueError(f"image_size must be (W, H), two positive numbers, "
+                             f"got {image_size!r}")
+        w, h = (float(v) for v in size)
+        if xy.ndim == 2 and xy.shape[1] == 2 and xy.size and np.all(np.isfinite(xy)):
+            for axis, name, limit in ((0, "x", w), (1, "y", h)):
+                lo, hi = float(xy[:, axis].min()), float(xy[:, axis].max())
+                if lo < 0 or hi > limit:
+                    raise ValueError(
+                        f"xy: pixel {name} must be in [0, {limit:g}] for image_size=(W, H)="
+                        f"({w:g}, {h:g}), got values in [{lo:g}, {hi:g}]; is image_size "
+                        "(W, H) of the image the points come from (not (H, W))?")
+        return xy / np.array([w, h], np.float32)
+
+    def _time_features(self, times, n: int) -> np.ndarray:
+        """Datetimes (inside the schedule's span) or an encoded array -> [N, d] features."""
+        if isinstance(times, np.ndarray) and times.dtype != object:
+            if not np.issubdtype(times.dtype, np.number):
+                raise ValueError(f"times must be N datetimes or a numeric [N, d] array, "
+                                 f"got dtype {times.dtype}")
+            return times.astype(np.float32)
+        times = list(times)
+        bad = [i for i, t in enumerate(times) if not isinstance(t, dt.datetime)]
+        if bad:
+            raise ValueError(f"times must be N={n} datetimes or an [N, d] array, got "
+                             f"{type(times[bad[0]]).__name__} {times[bad[0]]!r} at index {bad[0]}")
+        outside = [i for i, t in enumerate(times) if not _in_schedule(self.schedule, t)]
+        if outside:
+            t = times[outside[0]]
+            raise ValueError(
+                f"times: {len(outside)} of {len(times)} lie outside schedule "
+                f"{self.schedule.name!r} ({self.schedule.labels[0]}..{self.schedule.labels[-1]}"
+                f", +- {_duration(self.schedule.tolerance)}), e.g. {t.isoformat()} at index "
+                f"{outside[0]}; the predictor has no repeatability for them")
+        if not times:
+            return np.zeros((0, time_encoding.num_features(self.config.time_fields)), np.float32)
+        return encode_times(times, self.config).astype(np.float32)
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds / 86400:g} d" if seconds >= 86400 else f"{seconds / 60:g} min"
+
+
+def _in_schedule(schedule: schedule_lib.TimeSchedule, when: dt.datetime) -> bool:
+    """Whether ``when`` lies where the schedule has timestamps to interpolate between.
+
+    A schedule whose gap across the end of the cycle is no longer than its longest gap
+    inside the cycle covers the whole cycle (hours of a day, the dates of a year); one that
+    stops for the night (08:00-18:00) covers its span, widened by its tolerance.
+    """
+    slots = np.asarray(schedule.offsets, np.float64)
+    wrap_gap = slots[0] + schedule.period - slots[-1]
+    if len(slots) > 1 and wrap_gap <= np.max(np.diff(slots)):
+        return True
+    o = schedule.offset_of(when)
+    tol = schedule.tolerance
+    # Also on the other side of the cycle boundary (a span reaching past midnight).
+    return any(slots[0] - tol <= v <= slots[-1] + tol
+               for v in (o, o - schedule.period, o + schedule.period))
 
 
 def load(workdir: str | os.PathLike, *, step: int | None = None,

@@ -2,6 +2,7 @@
 
 import datetime as dt
 import json
+import re
 import shutil
 
 import jax
@@ -29,7 +30,7 @@ def test_load_and_call(workdir):
     assert rp.schedule == SCHEDULE and rp.num_timestamps == 21
     rng = np.random.default_rng(0)
     patches = rng.integers(0, 255, (5, 64, 64, 3), dtype=np.uint8)
-    xy = rng.uniform(0, 640, (5, 2))
+    xy = rng.uniform(0, 1, (5, 2)) * np.array([640, 480])  # inside the 640x480 image
     times = [dt.datetime(2020, 5, 3, 8 + i, 0) for i in range(5)]
     out = rp(patches, xy, times, image_size=(640, 480))
     assert out.shape == (5, 21) and out.dtype == np.float32
@@ -108,3 +109,96 @@ def test_at_time_interpolates_between_slots_and_wraps():
     np.testing.assert_allclose(per_row, [1.0, 1.0])
     with pytest.raises(ValueError, match="timestamps"):
         predict.at_time(np.zeros((1, 5)), s, dt.datetime(2020, 1, 1))
+
+
+# Issue 14, item 2: one validation path, no silent mis-scaling.
+
+def _inputs(n=3, seed=0):
+    rng = np.random.default_rng(seed)
+    patches = rng.integers(0, 256, (n, 64, 64, 3), dtype=np.uint8)
+    xy = rng.uniform(0, 1, (n, 2)).astype(np.float32)
+    times = [dt.datetime(2020, 5, 3, 9 + i, 0) for i in range(n)]
+    return patches, xy, times
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.int64, np.uint16, np.int16])
+def test_integer_patches_of_any_dtype_read_as_pixels(workdir, dtype):
+    rp = predict.load(workdir)
+    patches, xy, times = _inputs()
+    want = rp(patches, xy, times)
+    np.testing.assert_allclose(rp(patches.astype(dtype), xy, times), want, atol=1e-6)
+    feats = predict.encode_times(times, rp.config)
+    pure = predict.repeatability(rp.params, patches.astype(dtype), xy, feats, config=rp.config)
+    np.testing.assert_allclose(np.asarray(pure), want, atol=1e-5)
+
+
+def _bad_cases():
+    p, xy, t = _inputs()
+    pix = xy * np.array([640, 480], np.float32)
+    late = [dt.datetime(2020, 5, 3, 3, 0)] * 3  # 03:00: the schedule is 08:00..18:00
+    return [
+        # (name, call kwargs, regexes the message must match)
+        ("float patches 0-255", dict(patches=p.astype(np.float32), xy=xy, times=t),
+         [r"patches", r"\[0, 1\]", r"255"]),
+        ("int patches > 255", dict(patches=p.astype(np.int32) + 300, xy=xy, times=t),
+         [r"patches", r"\[0, 255\]", r"555"]),
+        ("negative int patches", dict(patches=p.astype(np.int32) - 300, xy=xy, times=t),
+         [r"patches", r"\[0, 255\]", r"-300"]),
+        ("bool patches", dict(patches=p > 100, xy=xy, times=t), [r"patches", r"bool"]),
+        ("pixel xy without image_size", dict(patches=p, xy=pix, times=t),
+         [r"xy", r"\[0, 1\]", r"image_size"]),
+        ("swapped image_size", dict(patches=p, xy=np.array([[600, 100]] * 3, np.float32),
+                                    times=t, image_size=(480, 640)),
+         [r"xy", r"x must be in \[0, 480\]", r"600", r"\(H, W\)"]),
+        ("xy outside the image", dict(patches=p, xy=pix + 700, times=t, image_size=(640, 480)),
+         [r"xy", r"\[0, 640\]"]),
+        ("image_size not two numbers", dict(patches=p, xy=pix, times=t, image_size=(640,)),
+         [r"image_size", r"\(W, H\)", r"640"]),
+        ("zero image_size", dict(patches=p, xy=pix, times=t, image_size=(0, 480)),
+         [r"image_size", r"positive"]),
+        ("time outside the schedule", dict(patches=p, xy=xy, times=late),
+         [r"times", r"08:00\.\.18:00", r"03:00"]),
+        ("times not datetimes", dict(patches=p, xy=xy, times=["9:00"] * 3),
+         [r"times", r"datetimes", r"str"]),
+        ("encoded times out of range", dict(patches=p, xy=xy,
+                                            times=np.full((3, 2), 7.0, np.float32)),
+         [r"times", r"\[-1, 1\]", r"7"]),
+    ]
+
+
+@pytest.mark.parametrize("case", _bad_cases(), ids=lambda c: c[0])
+def test_bad_values_name_argument_range_and_value(workdir, case):
+    _, kwargs, patterns = case
+    rp = predict.load(workdir)
+    with pytest.raises(ValueError) as e:
+        rp(kwargs.pop("patches"), kwargs.pop("xy"), kwargs.pop("times"), **kwargs)
+    for pat in patterns:
+        assert re.search(pat, str(e.value)), (pat, str(e.value))
+
+
+def test_pure_function_shares_the_validation(workdir):
+    rp = predict.load(workdir)
+    p, xy, t = _inputs()
+    feats = predict.encode_times(t, rp.config)
+    with pytest.raises(ValueError, match=r"float patches must be in \[0, 1\].*255"):
+        predict.repeatability(rp.params, p.astype(np.float32), xy, feats, config=rp.config)
+    with pytest.raises(ValueError, match=r"xy must be normalised to \[0, 1\]"):
+        predict.repeatability(rp.params, p, xy * 640, feats, config=rp.config)
+    with pytest.raises(ValueError, match=r"times must be N=3 .*\[N, 2\]"):
+        predict.repeatability(rp.params, p, xy, feats[:, :1], config=rp.config)
+    # Under jit only shapes are known: values are not checked, shapes still are.
+    f = jax.jit(lambda p_, xy_, t_: predict.repeatability(rp.params, p_, xy_, t_,
+                                                          config=rp.config))
+    assert f(p, xy, feats).shape == (3, 21)
+    with pytest.raises(ValueError, match=r"patches must be \[N, 64, 64, 3\]"):
+        f(p[:, :32], xy, feats)
+
+
+def test_times_between_slots_and_pixel_edges_accepted(workdir):
+    rp = predict.load(workdir)
+    p, _, _ = _inputs()
+    t = [dt.datetime(2020, 5, 3, 8, 15), dt.datetime(2020, 5, 3, 18, 5),
+         dt.datetime(2020, 5, 3, 7, 55)]
+    xy = np.array([[0, 0], [640, 480], [320.5, 10]], np.float32)
+    out = rp(p, xy, t, image_size=(640, 480))
+    assert out.shape == (3, 21) and np.all(np.isfinite(out))
