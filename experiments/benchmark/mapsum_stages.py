@@ -42,7 +42,6 @@ from experiments.benchmark.stages import (
 __all__ = [
     "LocalizationProblem",
     "localize_opencv",
-    "localize_ours_steps",
     "memory_probe",
     "run_localize_stage",
     "run_summarize_stage",
@@ -597,37 +596,6 @@ def synthetic_localization_problem(size: dict, seed: int = 0) -> LocalizationPro
     return LocalizationProblem(lmap, queries, truth)
 
 
-def localize_ours_steps(query, lmap, params: dict) -> tuple[Any, dict[str, float]]:
-    """``rp_jax.localize.localize``'s steps, timed one by one (the same calls, Sec. V-B).
-
-    Returns:
-      (``PoseEstimate``, {"retrieval", "matching", "pnp"} seconds).
-    """
-    from rp_jax.localize import estimate_pose, match_2d3d
-
-    t0 = time.perf_counter()
-    retrieved, _ = lmap.index.query(query.global_descriptor, params["num_retrieved"])
-    candidates = lmap.points_seen_by(retrieved)
-    t1 = time.perf_counter()
-    q_idx, c_idx = match_2d3d(
-        query.descriptors, lmap.point_descriptors[candidates], ratio=params["ratio"]
-    )
-    rows = candidates[c_idx]
-    t2 = time.perf_counter()
-    pose = estimate_pose(
-        np.asarray(query.xy)[q_idx],
-        lmap.map_points.xyz[rows],
-        query.K,
-        query.distortion,
-        reprojection_error=params["reprojection_error"],
-        iterations=params["ransac_iterations"],
-        min_inliers=params["min_inliers"],
-        seed=params["seed"],
-    )
-    t3 = time.perf_counter()
-    return pose, {"retrieval": t1 - t0, "matching": t2 - t1, "pnp": t3 - t2}
-
-
 def localize_opencv(query, problem: LocalizationProblem, params: dict, mutual_unique: bool = False):
     """The same three steps as a user would write them with OpenCV (the peer, Sec. V-B).
 
@@ -770,7 +738,9 @@ def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> d
         ms["ours"]["total"].append(1e3 * (time.perf_counter() - t0) / nq)
         acc = dict.fromkeys(steps, 0.0)
         for q in problem.queries:
-            for k, v in localize_ours_steps(q, problem.lmap, params)[1].items():
+            steps_s: dict[str, float] = {}
+            localize(q, problem.lmap, **params, timings=steps_s)
+            for k, v in steps_s.items():
                 acc[k] += v
         for k in steps:
             ms["ours"][k].append(1e3 * acc[k] / nq)

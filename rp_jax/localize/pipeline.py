@@ -13,6 +13,7 @@ mean descriptors, which database image sees which point, and the global-descript
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Mapping
 
 import numpy as np
@@ -130,6 +131,7 @@ def localize(
     min_inliers: int = 12,
     ransac_iterations: int = 10_000,
     seed: int = 0,
+    timings: dict[str, float] | None = None,
 ) -> LocalizationResult:
     """Localizes one query image against the summary map.
 
@@ -142,16 +144,21 @@ def localize(
       min_inliers: fewer PnP inliers than this is a failure.
       ransac_iterations: RANSAC iterations.
       seed: RANSAC seed.
+      timings: if given, receives the seconds of each step ("retrieval", "matching",
+        "pnp"; the benchmark's breakdown).
 
     Returns:
       The pose (``pose.success`` False on failure) and diagnostics.
     """
+    t0 = time.perf_counter()
     retrieved, _ = localization_map.index.query(query.global_descriptor, num_retrieved)
     candidates = localization_map.points_seen_by(retrieved)
+    t1 = time.perf_counter()
     q_idx, c_idx = match_2d3d(
         query.descriptors, localization_map.point_descriptors[candidates], ratio=ratio
     )
     rows = candidates[c_idx]
+    t2 = time.perf_counter()
     pose = estimate_pose(
         np.asarray(query.xy)[q_idx],
         localization_map.map_points.xyz[rows],
@@ -162,6 +169,8 @@ def localize(
         min_inliers=min_inliers,
         seed=seed,
     )
+    if timings is not None:
+        timings.update(retrieval=t1 - t0, matching=t2 - t1, pnp=time.perf_counter() - t2)
     inlier_points = (
         localization_map.rows[rows[pose.inliers]] if pose.success else np.zeros(0, np.int64)
     )

@@ -91,6 +91,12 @@ def test_localize_tiny_synthetic_map_within_thresholds():
     assert dt < 0.25 and dr < 2.0, (dt, dr)
     # The retrieved images are the ones nearest the query (camera x = 3 -> db_4 / db_5).
     assert set(result.retrieved[:2]) <= {"db_3.jpg", "db_4.jpg", "db_5.jpg"}
+    # The step timings (the benchmark's breakdown) come from the same call and change nothing.
+    steps: dict[str, float] = {}
+    timed = localize(query, lmap, num_retrieved=3, timings=steps)
+    assert sorted(steps) == ["matching", "pnp", "retrieval"] and min(steps.values()) > 0
+    np.testing.assert_array_equal(timed.pose.R, result.pose.R)
+    np.testing.assert_array_equal(timed.inlier_points, result.inlier_points)
 
 
 def test_localize_on_summary_map_and_recall():
