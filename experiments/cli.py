@@ -120,7 +120,7 @@ def main(argv, name: str, get_config, doc: str) -> int:
     from rp_jax import platform
 
     platform.configure_cpu()
-    from rp_jax import experiment
+    from rp_jax import experiment, train
     from rp_jax.sources.layout import LayoutError
 
     try:
@@ -130,6 +130,12 @@ def main(argv, name: str, get_config, doc: str) -> int:
     except LayoutError as e:  # a --data-dir that is not the dataset's layout: say what is missing
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
+    except train.WorkdirMismatchError as e:  # a workdir this config cannot resume
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
+        return 2
+    except train.NonFiniteLossError as e:  # diverged: nothing of it was saved or reported
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
+        return 1
     except ValueError as e:
         if not args.cross_validate:
             raise

@@ -52,6 +52,8 @@ __all__ = [
     "eval_step",
     "train_and_evaluate",
     "evaluate",
+    "NonFiniteLossError",
+    "WorkdirMismatchError",
 ]
 
 log = logging.getLogger(__name__)
@@ -59,6 +61,14 @@ log = logging.getLogger(__name__)
 
 class TrainState(train_state.TrainState):
     """Flax's TrainState (params, opt_state, step, tx, apply_fn)."""
+
+
+class WorkdirMismatchError(ValueError):
+    """The workdir holds a run that the asked config cannot resume or reuse."""
+
+
+class NonFiniteLossError(ValueError):
+    """Training produced a NaN or infinite loss; the last good checkpoint is kept."""
 
 
 def model_inputs(batch: dict, config: ml_collections.ConfigDict):
@@ -232,7 +242,14 @@ def write_run_files(workdir: Path, config, schedule: schedule_lib.TimeSchedule) 
         os.replace(tmp, workdir / name)
 
 
-def _check_same_config(workdir: Path, config) -> None:
+def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
+    """Refuse a workdir whose run ``config`` cannot resume (``trained``: it has checkpoints).
+
+    Fields that do not change the model (evaluation and checkpoint cadence) may differ.
+    ``num_epochs`` may differ only while nothing is trained: the learning-rate schedule is
+    a function of it, so a model trained for 5 epochs is neither the 3-epoch model (cut
+    short) nor the 8-epoch one (extended), and reporting it as either is a wrong result.
+    """
     path = workdir / "config.json"
     if not path.exists():
         return
@@ -242,10 +259,41 @@ def _check_same_config(workdir: Path, config) -> None:
             "eval_batch_size")
     diff = sorted(k for k in set(old) | set(new) if k not in keep and old.get(k) != new.get(k))
     if diff:
-        raise ValueError(
+        raise WorkdirMismatchError(
             f"{workdir} holds a run with a different config (fields {diff}); use a new --workdir "
             "or delete the old one"
         )
+    if trained and old.get("num_epochs") != new.get("num_epochs"):
+        raise WorkdirMismatchError(
+            f"{workdir} holds a model trained with num_epochs={old.get('num_epochs')}, asked "
+            f"num_epochs={new.get('num_epochs')}: its learning-rate schedule follows num_epochs, "
+            "so it can be neither cut short nor extended; use a new --workdir, or delete "
+            f"{workdir / checkpoints.CHECKPOINTS_DIR}, {workdir / checkpoints.BEST_DIR} and "
+            f"{workdir / 'metrics.jsonl'} to train again here"
+        )
+
+
+def _has_checkpoint(directory: Path) -> bool:
+    if not directory.is_dir():
+        return False
+    manager = checkpoints.reader(directory)
+    try:
+        return manager.latest_step() is not None
+    finally:
+        manager.close()
+
+
+def _raise_non_finite(what: str, value: float, epoch: int, step: int, config,
+                      manager) -> None:
+    last = manager.latest_step()
+    kept = (f"the last good checkpoint (step {last}) is kept in {manager.directory}"
+            if last is not None else "no checkpoint was written")
+    raise NonFiniteLossError(
+        f"training stopped: {what} is {value} at epoch {epoch}, step {step} "
+        f"(learning_rate={config.learning_rate}, grad_clip={config.grad_clip}); {kept}; "
+        "check the inputs for NaN, or train again with a lower --config.learning_rate "
+        "in a new --workdir"
+    )
 
 
 def train_and_evaluate(
@@ -296,7 +344,9 @@ def train_and_evaluate(
             f"{len(train_source)} training records is fewer than one batch of {config.batch_size}"
         )
 
-    _check_same_config(workdir, config)
+    trained = any(_has_checkpoint(workdir / d)
+                  for d in (checkpoints.CHECKPOINTS_DIR, checkpoints.BEST_DIR))
+    _check_same_config(workdir, config, trained=trained)
     write_run_files(workdir, config, schedule)
     state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
     compiled = _compile(config, mesh, state.apply_fn)
@@ -318,50 +368,70 @@ def train_and_evaluate(
     keep_best = bool(config.get("keep_best", False)) and val_source is not None
     best_manager = checkpoints.writer(workdir / checkpoints.BEST_DIR, 1) if keep_best else None
     best_val = _best_val_so_far(metrics_path)
-    for epoch in range(start_epoch, int(config.num_epochs)):
-        t0 = time.perf_counter()
-        batches = input_pipeline.epoch_batches(train_source, config.batch_size, seed=config.seed,
-                                               epoch=epoch)
-        losses_sum = jnp.zeros(())
-        bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
-                   disable=not progress, leave=False)
-        for i in bar:
-            batch = jax.device_put(_model_batch(batches[i]), compiled.data)
-            state, m = compiled.train(state, batch)
-            losses_sum = losses_sum + m["loss"]
-        train_loss = float(losses_sum) / steps_per_epoch
-        elapsed = time.perf_counter() - t0
-        record: dict[str, Any] = {
-            "epoch": epoch + 1,
-            "step": int(state.step),
-            "train_mse": train_loss,
-            "train_samples_per_s": steps_per_epoch * config.batch_size / elapsed,
-            "epoch_seconds": elapsed,
-        }
-        last = epoch + 1 == int(config.num_epochs)
-        if val_source is not None and ((epoch + 1) % config.eval_every_epochs == 0 or last):
-            val = evaluate(state.params, val_source, compiled, config.eval_batch_size)
-            record.update({"val_mse": val["mse"], "val_mae": val["mae"]})
-        if best_manager is not None and record.get("val_mse", float("inf")) < best_val:
-            best_val = record["val_mse"]
-            record["best"] = True
-            best_manager.save(int(state.step), force=True,
-                              args=ocp.args.StandardSave(checkpoints.state_tree(state)))
-            best_manager.wait_until_finished()
-        if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
-            manager.save(int(state.step), args=ocp.args.StandardSave(checkpoints.state_tree(state)))
-            manager.wait_until_finished()
-        with open(metrics_path, "a") as f:
-            f.write(json.dumps(record) + "\n")
-        if progress:
-            shown = {k: round(v, 5) if isinstance(v, float) else v for k, v in record.items()}
-            tqdm.write(json.dumps(shown))
-        if on_epoch_end is not None:
-            on_epoch_end(epoch + 1, record)
-    manager.close()
-    if best_manager is not None:
-        best_manager.close()
+    try:
+        for epoch in range(start_epoch, int(config.num_epochs)):
+            t0 = time.perf_counter()
+            batches = input_pipeline.epoch_batches(train_source, config.batch_size,
+                                                   seed=config.seed, epoch=epoch)
+            losses_sum = jnp.zeros(())
+            bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
+                       disable=not progress, leave=False)
+            previous = None  # checked one step late, so the host never waits on the device
+            for i in bar:
+                batch = jax.device_put(_model_batch(batches[i]), compiled.data)
+                state, m = compiled.train(state, batch)
+                losses_sum = losses_sum + m["loss"]
+                if previous is not None:
+                    _check_step(*previous, epoch + 1, config, manager)
+                previous = (epoch * steps_per_epoch + i + 1, m)  # state.step, not waited on
+            if previous is not None:
+                _check_step(*previous, epoch + 1, config, manager)
+            train_loss = float(losses_sum) / steps_per_epoch
+            elapsed = time.perf_counter() - t0
+            record: dict[str, Any] = {
+                "epoch": epoch + 1,
+                "step": int(state.step),
+                "train_mse": train_loss,
+                "train_samples_per_s": steps_per_epoch * config.batch_size / elapsed,
+                "epoch_seconds": elapsed,
+            }
+            last = epoch + 1 == int(config.num_epochs)
+            if val_source is not None and ((epoch + 1) % config.eval_every_epochs == 0 or last):
+                val = evaluate(state.params, val_source, compiled, config.eval_batch_size)
+                record.update({"val_mse": val["mse"], "val_mae": val["mae"]})
+                if not np.isfinite(val["mse"]):
+                    _raise_non_finite("the validation MSE", val["mse"], epoch + 1, int(state.step),
+                                      config, manager)
+            if best_manager is not None and record.get("val_mse", float("inf")) < best_val:
+                best_val = record["val_mse"]
+                record["best"] = True
+                best_manager.save(int(state.step), force=True,
+                                  args=ocp.args.StandardSave(checkpoints.state_tree(state)))
+                best_manager.wait_until_finished()
+            if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
+                manager.save(int(state.step),
+                             args=ocp.args.StandardSave(checkpoints.state_tree(state)))
+                manager.wait_until_finished()
+            with open(metrics_path, "a") as f:
+                f.write(json.dumps(record) + "\n")
+            if progress:
+                shown = {k: round(v, 5) if isinstance(v, float) else v for k, v in record.items()}
+                tqdm.write(json.dumps(shown))
+            if on_epoch_end is not None:
+                on_epoch_end(epoch + 1, record)
+    finally:  # also when training stops at a non-finite loss
+        manager.close()
+        if best_manager is not None:
+            best_manager.close()
     return state
+
+
+def _check_step(step: int, metrics: dict, epoch: int, config, manager) -> None:
+    """Stop at a non-finite loss or gradient, before anything of it is saved."""
+    for key, what in (("loss", "the training loss"), ("grad_norm", "the gradient norm")):
+        value = float(metrics[key])
+        if not np.isfinite(value):
+            _raise_non_finite(what, value, epoch, step, config, manager)
 
 
 def params_to_numpy(params) -> Any:

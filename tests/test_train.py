@@ -199,3 +199,60 @@ def test_keep_best_saves_the_best_validation_epoch(tmp_path):
     assert mse_best == pytest.approx(best["val_mse"], rel=1e-3)
     if best["step"] != records[-1]["step"]:
         assert not np.allclose(rp.params["fc6"]["kernel"], last.params["fc6"]["kernel"])
+
+
+# Issue 14, item 6: a re-run never reports a model of another epoch count; a NaN loss stops.
+
+@pytest.mark.parametrize("asked", [1, 3])
+def test_refuses_another_epoch_count_once_trained(tmp_path, asked):
+    src = task(64, 0)
+    train.train_and_evaluate(small_config(num_epochs=2), tmp_path, src, progress=False)
+    before = (tmp_path / "config.json").read_text()
+    with pytest.raises(train.WorkdirMismatchError,
+                       match=rf"trained with num_epochs=2, asked num_epochs={asked}"
+                             r".*new --workdir"):
+        train.train_and_evaluate(small_config(num_epochs=asked), tmp_path, src, progress=False)
+    assert (tmp_path / "config.json").read_text() == before  # still says what was trained
+
+
+def test_epoch_count_may_change_before_anything_is_trained(tmp_path):
+    src = task(64, 0)
+    train.write_run_files(tmp_path, small_config(num_epochs=5), SCHEDULE)  # killed at once
+    state = train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
+    assert int(state.step) == 2
+
+
+def test_nan_learning_rate_stops_at_the_first_nan_loss_without_a_checkpoint(tmp_path):
+    # Step 1's loss comes from the initial parameters; its update makes them NaN.
+    with pytest.raises(train.NonFiniteLossError,
+                       match=r"nan at epoch 1, step 2 \(learning_rate=nan.*no checkpoint"):
+        train.train_and_evaluate(small_config(learning_rate=float("nan")), tmp_path, task(64, 0),
+                                 progress=False)
+    assert not (tmp_path / "metrics.jsonl").exists()
+    assert not list((tmp_path / "checkpoints").glob("[0-9]*"))
+
+
+def test_nan_loss_keeps_the_last_good_checkpoint(tmp_path):
+    from rp_jax import checkpoints
+
+    config = small_config(num_epochs=2)
+    src = task(64, 0)
+
+    class Killed(Exception):
+        pass
+
+    def kill(epoch, _):
+        raise Killed
+
+    with pytest.raises(Killed):
+        train.train_and_evaluate(config, tmp_path, src, progress=False, on_epoch_end=kill)
+    bad = ip.ArraySource(dict(src.arrays, xy_normalized=np.full_like(src.arrays["xy_normalized"],
+                                                                      np.nan)), ip.MODEL_KEYS)
+    with pytest.raises(train.NonFiniteLossError,
+                       match=r"training loss is nan at epoch 2, step 3"
+                             r".*checkpoint \(step 2\) is kept"):
+        train.train_and_evaluate(config, tmp_path, bad, progress=False)
+    manager = checkpoints.reader(tmp_path / "checkpoints")
+    assert manager.all_steps() == [2]
+    manager.close()
+    assert len((tmp_path / "metrics.jsonl").read_text().splitlines()) == 1
