@@ -1,0 +1,65 @@
+"""What the ``python -m rp_jax.keypoints / mapsum / localize`` commands share.
+
+Each command is thin (hloc's style: parse flags, call one library function, print what it
+wrote). They share the flag vocabulary below and one rule for bad input: a single line
+``<command>: error: <what, naming the file or flag>`` on stderr and exit status 2 (argparse's
+own status for a bad flag), never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
+from rp_jax.sources.layout import LayoutError
+
+__all__ = ["InputError", "INPUT_ERRORS", "datetime_flag", "load_predictor", "run_command"]
+
+EXIT_BAD_INPUT = 2
+
+
+class InputError(ValueError):
+    """Bad input to a command: a missing folder, an unreadable file, a flag that does not fit."""
+
+
+# What a command reports in one line (exit 2); anything else is a bug and keeps its traceback.
+INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError)
+
+
+def datetime_flag(text: str) -> dt.datetime:
+    """argparse ``type=`` for a time flag (bad text: argparse's one-line error, exit 2)."""
+    try:
+        return parse_datetime(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"unreadable time {text!r}; expected {TIME_FORMATS_HELP}"
+        ) from None
+
+
+def load_predictor(path: str | os.PathLike, flag: str = "--model"):
+    """``rp_jax.predict.load`` with its failures as an ``InputError`` naming the flag."""
+    from rp_jax import predict  # JAX: imported once the command has configured the CPU
+
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError(f"{flag} {path}: no such folder (expected a trained workdir with "
+                         "config.json, schedule.json and checkpoints/)")
+    try:
+        return predict.load(path)
+    except (ValueError, KeyError, TypeError, OSError) as err:
+        raise InputError(f"{flag} {path}: unreadable model: {err}") from err
+
+
+def run_command(prog: str, body: Callable[[], int]) -> int:
+    """Run a command's body; an input error becomes one line on stderr and exit status 2."""
+    try:
+        return body()
+    except INPUT_ERRORS as err:
+        message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        print(f"{prog}: error: {message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
