@@ -170,7 +170,16 @@ def read_ground_truth(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
             values = [float(x) for x in tokens[1:]]
         except ValueError as err:
             raise LayoutError(f"{path}:{line_no}: non-numeric pose in {line!r}") from err
-        out[Path(tokens[0]).name] = pose_from_ground_truth(values[:4], values[4:])
+        if not np.all(np.isfinite(values)):
+            # A NaN centre would leave the image in no viewpoint, dropped without a word.
+            raise LayoutError(
+                f"{path}:{line_no}: pose of {tokens[0]} has NaN or infinite values in {line!r}; "
+                "expected 'name qw qx qy qz cx cy cz', finite numbers"
+            )
+        try:
+            out[Path(tokens[0]).name] = pose_from_ground_truth(values[:4], values[4:])
+        except ValueError as err:  # a zero quaternion
+            raise LayoutError(f"{path}:{line_no}: {err}, in {line!r}") from err
     return out
 
 

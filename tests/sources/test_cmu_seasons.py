@@ -272,3 +272,23 @@ def test_original_cmu_seasons_rect_names(tmp_path, caplog):
     assert cap.camera.model == "PINHOLE" and not np.any(cap.camera.distortion)
     np.testing.assert_allclose(cap.camera.K[0], [50.0, 0.0, 31.5])
     np.testing.assert_array_equal(cmu_seasons.load_image(cap), images.read_rgb(cap.image_path))
+
+
+# Issue 14, item 7: a bad pose line is named by file and line, never dropped in silence.
+
+@pytest.mark.parametrize("values,what", [
+    ("1 0 0 0 nan 1 0", "NaN or infinite"),
+    ("nan 0 0 0 0 1 0", "NaN or infinite"),
+    ("1 0 0 0 inf 1 0", "NaN or infinite"),
+    ("0 0 0 0 0 1 0", "norm 0"),
+])
+def test_bad_pose_line_names_file_and_line(tmp_path, values, what):
+    entries, _, _ = _layout(tmp_path)
+    gt = tmp_path / "slice7" / "ground-truth-database-images-slice7.txt"
+    lines = gt.read_text().splitlines()
+    lines[2] = f"{entries[2][0]} {values}"
+    gt.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LayoutError) as err:
+        cmu_seasons.read(tmp_path)
+    msg = str(err.value)
+    assert f"{gt}:3:" in msg and entries[2][0] in msg and what in msg
