@@ -38,12 +38,13 @@ def viewpoint_folds(viewpoints: np.ndarray, num_folds: int = 0, seed: int = 0) -
 
     Args:
       viewpoints: the viewpoint of every training record.
-      num_folds: 0 (or at least the number of viewpoints) for one fold per viewpoint;
-        otherwise the viewpoints are shuffled with ``seed`` and dealt into this many folds.
+      num_folds: 0 (or the number of viewpoints) for one fold per viewpoint; otherwise the
+        viewpoints are shuffled with ``seed`` and dealt into this many folds.
       seed: the shuffle's seed.
 
     Raises:
-      ValueError: fewer than two viewpoints, or ``num_folds`` of 1 or negative.
+      ValueError: fewer than two viewpoints, or ``num_folds`` of 1, negative or more than
+        the viewpoints (a fold with no viewpoint to hold out).
     """
     unique = sorted(set(np.asarray(viewpoints).astype(str).tolist()))
     if len(unique) < 2:
@@ -51,7 +52,11 @@ def viewpoint_folds(viewpoints: np.ndarray, num_folds: int = 0, seed: int = 0) -
                          f"{len(unique)} ({unique}); use a larger --size")
     if num_folds < 0 or num_folds == 1:
         raise ValueError(f"num_folds must be 0 (one per viewpoint) or >= 2, got {num_folds}")
-    if num_folds == 0 or num_folds >= len(unique):
+    if num_folds > len(unique):
+        raise ValueError(f"num_folds={num_folds} (--folds) but the training split has only "
+                         f"{len(unique)} viewpoints ({', '.join(unique)}): at most {len(unique)} "
+                         "folds, or 0 for one per viewpoint")
+    if num_folds == 0 or num_folds == len(unique):
         return [[v] for v in unique]
     order = np.random.default_rng(seed).permutation(len(unique))
     return [sorted(unique[i] for i in order[k::num_folds]) for k in range(num_folds)]

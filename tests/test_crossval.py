@@ -24,6 +24,15 @@ def test_one_fold_per_viewpoint_or_dealt_into_groups():
         crossval.viewpoint_folds(vps, num_folds=1)
 
 
+def test_more_folds_than_viewpoints_is_an_error():
+    # Issue 14, item 7: --folds 99 over 5 viewpoints quietly ran 5 folds.
+    vps = np.array(["b", "a", "c", "a", "d", "e"])
+    assert crossval.viewpoint_folds(vps, num_folds=5) == [["a"], ["b"], ["c"], ["d"], ["e"]]
+    with pytest.raises(ValueError, match=r"num_folds=99 \(--folds\).* only 5 viewpoints "
+                                         r"\(a, b, c, d, e\): at most 5"):
+        crossval.viewpoint_folds(vps, num_folds=99)
+
+
 def _columns(num_viewpoints: int, per_viewpoint: int) -> dict:
     schedule = schedule_lib.preset("webcam_clipart")
     parts = [learnable_task.make_learnable_task(per_viewpoint, schedule, seed=i)
