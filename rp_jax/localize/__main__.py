@@ -1,0 +1,91 @@
+"""``python -m rp_jax.localize``: localize query images against a (summary) map (Sec. V-B).
+
+    python -m rp_jax.localize --map DIR --queries DIR [--ground-truth FILE] --out DIR
+
+Writes ``DIR/submission.txt`` (visuallocalization.net format) and ``DIR/localization.json``
+and prints, with ``--ground-truth``, the three-threshold accuracy table. The library
+function is ``rp_jax.localize.run.localize_folder``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from rp_jax.commands import run_command
+from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS
+from rp_jax.localize.run import SUBMISSION, localize_folder, threshold_key
+
+PROG = "python -m rp_jax.localize"
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description="Localize query images against a map: retrieval, 2D-3D matching, "
+        "PnP-RANSAC. Writes the visuallocalization.net submission and, with --ground-truth, "
+        "the accuracy within (0.25 m, 2 deg), (0.5 m, 5 deg) and (5 m, 10 deg).",
+    )
+    p.add_argument("--map", required=True, metavar="DIR",
+                   help="map folder written by python -m rp_jax.mapsum summarize (model/ and "
+                   "localization.npz), or a COLMAP model folder (then give --images or "
+                   "--features)")
+    p.add_argument("--queries", required=True, metavar="DIR",
+                   help="folder of query images (.jpg, .jpeg, .png; names relative to it)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    p.add_argument("--ground-truth", metavar="FILE",
+                   help="true query poses: a file of 'name qw qx qy qz tx ty tz' lines "
+                   "(world-to-camera, the submission format) or a COLMAP model folder")
+    p.add_argument("--intrinsics", metavar="FILE",
+                   help="query cameras, hloc's queries_with_intrinsics.txt lines 'name MODEL W "
+                   "H params...' (COLMAP models); default: the map's camera if it has exactly "
+                   "one of the query's size")
+    p.add_argument("--images", metavar="DIR",
+                   help="database images of a plain COLMAP model given as --map (to describe it "
+                   "with SIFT)")
+    p.add_argument("--features", metavar="FILE",
+                   help="hloc features.h5 holding the queries' keypoints and descriptors (for a "
+                   "map described with the same file)")
+    p.add_argument("--global-features", metavar="FILE",
+                   help="hloc global-feats-*.h5 (NetVLAD, ...) holding the queries' global "
+                   "descriptors; default: VLAD with the map's vocabulary")
+    p.add_argument("--num-retrieved", type=int, default=10, metavar="K",
+                   help="database images retrieved per query (default 10)")
+    p.add_argument("--match-ratio", type=float, default=0.8, metavar="R",
+                   help="Lowe's ratio of the 2D-3D matching (default 0.8)")
+    p.add_argument("--reprojection-error", type=float, default=8.0, metavar="PX",
+                   help="PnP-RANSAC inlier threshold in pixels (default 8)")
+    p.add_argument("--min-inliers", type=int, default=12, metavar="N",
+                   help="fewer PnP inliers is a failure (default 12)")
+    p.add_argument("--max-keypoints", type=int, default=4000, metavar="N",
+                   help="SIFT keypoints per image (default 4000)")
+    p.add_argument("--seed", type=int, default=0, help="RANSAC (and VLAD) seed (default 0)")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse the flags, localize, print the counts and the accuracy table."""
+    args = _parser().parse_args(argv)
+
+    def body() -> int:
+        result = localize_folder(
+            args.map, args.queries, args.out, ground_truth=args.ground_truth,
+            images=args.images, features=args.features, global_features=args.global_features,
+            intrinsics=args.intrinsics, num_retrieved=args.num_retrieved,
+            match_ratio=args.match_ratio, reprojection_error=args.reprojection_error,
+            min_inliers=args.min_inliers, max_keypoints=args.max_keypoints, seed=args.seed)
+        print(f"localized {result['localized']} of {result['queries']} queries against "
+              f"{result['map_points']} map points; wrote {args.out}/{SUBMISSION}")
+        if result["accuracy"] is not None:
+            print(f"accuracy on the {result['scored']} queries with a true pose:")
+            for th in DEFAULT_THRESHOLDS:
+                label = f"({th[0]:g} m, {th[1]:g} deg)"
+                print(f"  {label:16s} {result['accuracy'][threshold_key(th)]:6.1f} %")
+        return 0
+
+    return run_command(PROG, body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

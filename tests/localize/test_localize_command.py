@@ -1,0 +1,185 @@
+"""Tests of ``python -m rp_jax.localize`` (rp_jax.localize.run) and the hloc interop.
+
+On a tiny COLMAP model and queries the test renders itself (tests/_own_data.py): SIFT on
+the images, or features and global descriptors in hloc's h5 layout written with h5py.
+"""
+
+import json
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pycolmap
+import pytest
+
+from rp_jax.localize import __main__ as command
+from rp_jax.localize import read_submission
+from rp_jax.localize.queries import read_poses
+from rp_jax.mapsum import __main__ as mapsum_command
+from tests._own_data import (
+    make_predictor,
+    make_scene,
+    write_hloc_features,
+    write_hloc_global,
+)
+
+AT = "2011-04-04 17:00"
+TABLE = ("(0.25 m, 2 deg)", "(0.5 m, 5 deg)", "(5 m, 10 deg)")
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    return make_scene(tmp_path_factory.mktemp("scene"))
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    return make_predictor(tmp_path_factory.mktemp("predictor"))
+
+
+def _localize(*argv):
+    return command.main([str(a) for a in argv])
+
+
+def _check_poses(scene, submission, within_m=0.25, within_deg=2.0):
+    from rp_jax.localize import pose_error
+
+    est = read_submission(submission)
+    assert sorted(est) == scene.query_names
+    for name, (R, t) in est.items():
+        dc, dr = pose_error(*scene.query_poses[name], R, t)
+        assert dc < within_m and dr < within_deg, (name, dc, dr)
+
+
+def test_summary_map_then_localize(scene, model, tmp_path, capsys):
+    summary = tmp_path / "summary"
+    assert mapsum_command.main(["summarize", "--model", str(scene.model), "--images",
+                                str(scene.images), "--predictor", str(model), "--at", AT,
+                                "--ratio", "0.5", "--out", str(summary)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "loc"
+    assert _localize("--map", summary, "--queries", scene.queries, "--intrinsics",
+                     scene.intrinsics, "--ground-truth", scene.ground_truth, "--out", out) == 0
+    printed = capsys.readouterr().out
+    assert "localized 3 of 3 queries" in printed and "accuracy on the 3 queries" in printed
+    for label in TABLE:
+        assert f"{label:16s}  100.0 %" in printed
+    _check_poses(scene, out / "submission.txt")
+    result = json.loads((out / "localization.json").read_text())
+    assert result["accuracy"] == {"0.25m_2deg": 100.0, "0.5m_5deg": 100.0, "5m_10deg": 100.0}
+    kept = json.loads((summary / "summary.json").read_text())["kept_points"]
+    assert result["map_points"] == kept < json.loads(
+        (summary / "summary.json").read_text())["map_points"]  # the summary's points only
+    assert result["per_query"]["q_0.jpg"]["inliers"] >= 12
+
+
+def test_plain_colmap_model_with_images_and_the_maps_camera(scene, tmp_path, capsys):
+    """No map folder: the model is described from its images; no --intrinsics: the map's
+    single camera (the queries have its size); no ground truth: no table."""
+    out = tmp_path / "loc"
+    assert _localize("--map", scene.model, "--images", scene.images, "--queries",
+                     scene.queries, "--out", out) == 0
+    printed = capsys.readouterr().out
+    assert "localized 3 of 3" in printed and "accuracy" not in printed
+    _check_poses(scene, out / "submission.txt")
+    assert json.loads((out / "localization.json").read_text())["accuracy"] is None
+
+
+def test_ground_truth_as_a_colmap_model(scene, tmp_path):
+    rec = pycolmap.Reconstruction()
+    rec.add_camera_with_trivial_rig(pycolmap.Camera(model="PINHOLE", width=320, height=240,
+                                                    params=[300, 300, 160.5, 120.5],
+                                                    camera_id=1))
+    for i, name in enumerate(scene.query_names, start=1):
+        R, t = scene.query_poses[name]
+        rec.add_image_with_trivial_frame(
+            pycolmap.Image(name=name, camera_id=1, image_id=i),
+            pycolmap.Rigid3d(np.hstack([R, t[:, None]])))
+    rec.write_text(str(tmp_path))
+    poses = read_poses(tmp_path)
+    for name in scene.query_names:
+        np.testing.assert_allclose(poses[name][0], scene.query_poses[name][0], atol=1e-9)
+        np.testing.assert_allclose(poses[name][1], scene.query_poses[name][1], atol=1e-9)
+
+
+def test_hloc_features_summarize_and_localize(scene, model, tmp_path, capsys):
+    """hloc interop: the map's point descriptors and retrieval come from hloc's h5 files
+    (64-D descriptors no SIFT could give), the queries' too (grouped under query/)."""
+    feats = write_hloc_features(scene, tmp_path / "feats-superpoint-n4096-r1024.h5",
+                                query_prefix="query/")
+    glob = write_hloc_global(scene, tmp_path / "global-feats-netvlad.h5", query_prefix="query/")
+    summary = tmp_path / "summary"
+    assert mapsum_command.main(["summarize", "--model", str(scene.model), "--images",
+                                str(scene.images), "--predictor", str(model), "--at", AT,
+                                "--ratio", "0.5", "--features", str(feats),
+                                "--global-features", str(glob), "--out", str(summary)]) == 0
+    record = json.loads((summary / "summary.json").read_text())
+    assert record["descriptors"] == f"hloc:{feats.name}"
+    assert record["global_descriptors"] == f"hloc:{glob.name}"
+    with np.load(summary / "localization.npz") as z:
+        assert z["descriptors"].shape[1] == 64 and z["vocabulary"].size == 0
+    capsys.readouterr()
+    out = tmp_path / "loc"
+    assert _localize("--map", summary, "--queries", scene.queries, "--features", feats,
+                     "--global-features", glob, "--intrinsics", scene.intrinsics,
+                     "--ground-truth", scene.ground_truth, "--out", out) == 0
+    printed = capsys.readouterr().out
+    for label in TABLE[1:]:
+        assert f"{label:16s}  100.0 %" in printed
+    _check_poses(scene, out / "submission.txt", within_m=0.5, within_deg=5.0)
+    # Queries need the map's kind of descriptors: SIFT queries against an hloc map fail.
+    assert _localize("--map", summary, "--queries", scene.queries, "--out", out) == 2
+    assert "--features" in capsys.readouterr().err
+
+
+def test_hloc_keypoints_in_colmap_convention_are_refused(scene, tmp_path, capsys):
+    """hloc keypoints are the model's less 0.5 px; a file holding the model's own positions
+    (COLMAP's convention) is a half-pixel convention error, named."""
+    feats = write_hloc_features(scene, tmp_path / "feats.h5")
+    with h5py.File(feats, "a") as f:
+        for name in scene.db_names:
+            kp = f[name]["keypoints"][()].astype(np.float64) + 0.5
+            del f[name]["keypoints"]
+            f[name].create_dataset("keypoints", data=kp.astype(np.float32))
+    rc = mapsum_command.main(["summarize", "--model", str(scene.model), "--images",
+                              str(scene.images), "--method", "random", "--ratio", "0.5",
+                              "--features", str(feats), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "offset by (+0.50, +0.50) px" in err and err.count("\n") == 1
+
+
+def test_bad_input_is_one_line_exit_2(scene, tmp_path, capsys):
+    bad_intrinsics = tmp_path / "intrinsics.txt"
+    bad_intrinsics.write_text("q_0.jpg PINHOLE 320 240 300\n")
+    garbage = tmp_path / "garbage"
+    garbage.mkdir()
+    for name in ("cameras.bin", "images.bin", "points3D.bin"):
+        (garbage / name).write_bytes(b"\x01\x02 not a model")
+    no_images = tmp_path / "empty"
+    no_images.mkdir()
+    cases = [
+        (["--map", tmp_path / "none", "--queries", scene.queries], "no such map folder"),
+        (["--map", tmp_path, "--queries", scene.queries], "expected a COLMAP model"),
+        (["--map", garbage, "--queries", scene.queries], "unreadable COLMAP model"),
+        (["--map", scene.model, "--queries", scene.queries], "--images"),
+        (["--map", scene.model, "--images", scene.images, "--queries", tmp_path / "nq"],
+         "no such folder of query images"),
+        (["--map", scene.model, "--images", scene.images, "--queries", no_images],
+         "no query image"),
+        (["--map", scene.model, "--images", scene.images, "--queries", scene.queries,
+          "--intrinsics", bad_intrinsics], "intrinsics.txt:1"),
+        (["--map", scene.model, "--images", scene.images, "--queries", scene.queries,
+          "--ground-truth", tmp_path / "gt.txt"], "gt.txt"),
+    ]
+    for argv, expected in cases:
+        rc = _localize(*argv, "--out", tmp_path / "o")
+        err = capsys.readouterr().err
+        assert rc == 2 and err.count("\n") == 1 and expected in err, (argv, err)
+
+
+def test_help_text_on_every_flag():
+    assert all(a.help for a in command._parser()._actions)
+    proc = subprocess.run([sys.executable, "-m", "rp_jax.localize", "--help"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "--ground-truth" in proc.stdout
