@@ -59,6 +59,7 @@ __all__ = [
     "builder_configs",
     "ground_truth_config",
     "label_viewpoint_examples",
+    "layout_viewpoints",
     "read_captures",
     "split_viewpoints",
     "synthetic_root",
@@ -293,16 +294,52 @@ def _slice_of(viewpoint: str) -> int:
     return int(head[5:])
 
 
-def split_viewpoints(name: str, source: str, viewpoints: Iterable[str]) -> dict[str, list[str]]:
+def layout_viewpoints(name: str, root: Path) -> list[str] | None:
+    """What the layout holds before the reader drops anything, as ``split_viewpoints`` reads
+    it: Webcam Clip Art's scene folders, CMU Seasons' ``slice<N>/`` folders with database
+    images (None for RobotCar, whose viewpoints exist only after pose grouping)."""
+    root = Path(root)
+    if name == "webcam_clipart":
+        return sorted(webcam_clipart.find_scenes(root))
+    if name == "cmu_seasons":
+        wanted = _cmu_slices(root, load_spec(name)["splits"])
+        found = cmu_seasons.find_slices(root) if root.is_dir() else {}
+        return [
+            f"slice{n}/"
+            for n in wanted
+            if n in found
+            and (found[n] / "database").is_dir()
+            and any(p.is_file() for p in (found[n] / "database").iterdir())
+        ]
+    return None
+
+
+def split_viewpoints(
+    name: str,
+    source: str,
+    viewpoints: Iterable[str],
+    *,
+    found: Iterable[str] | None = None,
+) -> dict[str, list[str]]:
     """Viewpoint ids of each split, as ``data_specs/<name>.json`` says (Sec. IV-A-1).
 
     Webcam Clip Art: listed scenes (7 train / 1 test; for a real layout with no list, the
     last scene in sorted order is the test scene). CMU Seasons: slices 6, 7, 9 train and
     8 test. RobotCar: all train. Empty splits are dropped.
+
+    Args:
+      name, source: the dataset and ``"synthetic"`` or ``"real"``.
+      viewpoints: the viewpoints of the captures the reader kept.
+      found: the viewpoints the layout held before the reader dropped any
+        (``layout_viewpoints``). Given, the splits are chosen on them (a scene whose images
+        were all dropped is not replaced by another held-out scene), and a split that had
+        viewpoints there but keeps none raises ``LayoutError``.
     """
     viewpoints = sorted(set(viewpoints))
     if name == "webcam_clipart":
-        out = _webcam_splits(source, viewpoints)
+        chosen = _webcam_splits(source, sorted(set(found)) if found is not None else viewpoints)
+        kept = set(viewpoints)
+        out = {split: [v for v in vps if v in kept] for split, vps in chosen.items()}
     elif name == "cmu_seasons":
         spec = load_spec(name)["splits"]
         out = {
@@ -313,6 +350,17 @@ def split_viewpoints(name: str, source: str, viewpoints: Iterable[str]) -> dict[
         out = {"train": viewpoints}
     else:
         raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
+    if found is not None:
+        expected = split_viewpoints(name, source, found)
+        lost = {split: vps for split, vps in expected.items() if not out.get(split)}
+        if lost:
+            what = "; ".join(f"{split!r} ({', '.join(vps)})" for split, vps in lost.items())
+            raise LayoutError(
+                f"{name}: split {what} lost all its viewpoints: the reader dropped every image "
+                "of them (the read summary logged above names the files and why: no capture "
+                "time, unreadable, no pose, outside every viewpoint or timestamp); fix those "
+                f"files, or list the splits in data_specs/{name}.json"
+            )
     return {split: vps for split, vps in out.items() if vps}
 
 
@@ -621,7 +669,8 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
                 f"{root}: the {self.DATASET} reader found no usable capture "
                 "(see the read summary logged above)"
             )
-        splits = split_viewpoints(self.DATASET, cfg.source, {c.viewpoint for c in captures})
+        splits = split_viewpoints(self.DATASET, cfg.source, {c.viewpoint for c in captures},
+                                  found=layout_viewpoints(self.DATASET, root))
         gt_config = ground_truth_config(self.DATASET, cfg.max_keypoints)
         cache = self.cache_dir(dl_manager)
         log.info("%s/%s: %s", self.DATASET, cfg.name, {s: len(v) for s, v in splits.items()})

@@ -277,7 +277,7 @@ def _slice_captures(
         if parsed is None:
             if path.suffix.lower() in _IMAGE_SUFFIXES:
                 counts.read += 1
-                counts.no_time += 1  # an image, but not named img_<i>_<c0|c1>_<us>us.jpg
+                counts.drop("no_time", path)  # an image not named img_<i>_<c0|c1>_<us>us.jpg
                 log.debug("%s: not named img_<i>_<c0|c1>_<unix_us>us[_rect].jpg; skipped", path)
             continue  # not an image of the layout (e.g. a README)
         counts.read += 1
@@ -289,10 +289,10 @@ def _slice_captures(
             )
         pose = poses.get(path.name)
         if pose is None and need_pose:
-            counts.no_pose += 1
+            counts.drop("no_pose", path)
             continue
         if images.probe_size(path) is None:
-            counts.unreadable += 1
+            counts.drop("unreadable", path)
             log.warning("unreadable image %s; skipped", path)
             continue
         camera = cameras[cam_id]
@@ -394,7 +394,7 @@ def read(
         )
         for cap, label in zip(caps, labels):
             if label < 0:
-                counts.no_viewpoint += 1
+                counts.drop("no_viewpoint", cap.image_path)
                 continue
             grouped.append(_with_viewpoint(cap, f"slice{n}/vp{label:04d}"))
     assigned = assign_slots(

@@ -38,6 +38,7 @@ from rp_jax.sources.capture import Capture
 
 __all__ = [
     "CycleRule",
+    "DROP_REASONS",
     "LayoutError",
     "ReadCounts",
     "assign_slots",
@@ -86,9 +87,17 @@ def zone(name: str) -> zoneinfo.ZoneInfo:
         raise ValueError(f"unknown time zone {name!r} (expected an IANA name)") from err
 
 
+# Reasons a reader drops an input file, in the order its summary lists them.
+DROP_REASONS = ("unreadable", "no_time", "no_pose", "no_viewpoint", "unassigned", "extra_in_slot")
+# Reasons that mean the input is not what the layout promises (the summary is a warning).
+_SUSPECT_REASONS = ("unreadable", "no_time")
+# How many names of each reason the summary shows.
+_NAMES_SHOWN = 5
+
+
 @dataclasses.dataclass
 class ReadCounts:
-    """What a reader saw, for the summary it logs at INFO.
+    """What a reader saw, for the summary it logs: every dropped input counted by reason.
 
     Attributes:
       dataset: name used in the log line.
@@ -101,6 +110,7 @@ class ReadCounts:
       extra_in_slot: captures dropped because another one of the same (viewpoint, cycle,
         slot) lay nearer the timestamp (only where a reader keeps one per slot).
       kept: captures returned.
+      dropped: reason -> the files dropped for it (``drop``), named in the summary.
     """
 
     dataset: str
@@ -112,20 +122,35 @@ class ReadCounts:
     unassigned: int = 0
     extra_in_slot: int = 0
     kept: int = 0
+    dropped: dict[str, list[str]] = dataclasses.field(default_factory=dict)
+
+    def drop(self, reason: str, what: object) -> None:
+        """Count one input dropped for ``reason`` (one of ``DROP_REASONS``) and name it."""
+        if reason not in DROP_REASONS:
+            raise ValueError(f"unknown drop reason {reason!r}; expected one of {DROP_REASONS}")
+        setattr(self, reason, getattr(self, reason) + 1)
+        self.dropped.setdefault(reason, []).append(str(what))
+
+    def summary(self) -> str:
+        """One line: the counts by reason, then the files dropped for each reason."""
+        parts = [f"{self.read} read"]
+        parts += [f"{getattr(self, name)} {name.replace('_', ' ')}" for name in DROP_REASONS]
+        parts.append(f"{self.kept} kept")
+        line = f"{self.dataset}: {', '.join(parts)}"
+        for reason in DROP_REASONS:
+            names = self.dropped.get(reason)
+            if not names:
+                continue
+            shown = ", ".join(names[:_NAMES_SHOWN])
+            more = len(names) - _NAMES_SHOWN
+            line += f"; {reason.replace('_', ' ')}: {shown}" + (f" and {more} more" if more > 0
+                                                                  else "")
+        return line
 
     def log_summary(self) -> None:
-        parts = [f"{self.read} read"]
-        for name in (
-            "unreadable",
-            "no_time",
-            "no_pose",
-            "no_viewpoint",
-            "unassigned",
-            "extra_in_slot",
-        ):
-            parts.append(f"{getattr(self, name)} {name.replace('_', ' ')}")
-        parts.append(f"{self.kept} kept")
-        log.info("%s: %s", self.dataset, ", ".join(parts))
+        """Log ``summary``: a warning if files were unreadable or had no time, else INFO."""
+        suspect = any(getattr(self, name) for name in _SUSPECT_REASONS)
+        log.log(logging.WARNING if suspect else logging.INFO, "%s", self.summary())
 
 
 def assign_slots(
@@ -168,7 +193,7 @@ def assign_slots(
             raw.append((capture, cycle, override))
         elif calendar is None:
             if counts is not None:
-                counts.unassigned += 1
+                counts.drop("unassigned", capture.image_path)
         else:
             raw.append((capture, calendar[0], calendar[1]))
 
@@ -219,7 +244,9 @@ def keep_nearest_per_slot(
             best[key] = (gap, cap)
     kept = {id(c) for _, c in best.values()}
     if counts is not None:
-        counts.extra_in_slot += len(captures) - len(kept)
+        for c in captures:
+            if id(c) not in kept:
+                counts.drop("extra_in_slot", c.image_path)
     return [c for c in captures if id(c) in kept]
 
 

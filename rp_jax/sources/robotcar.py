@@ -513,11 +513,11 @@ def read(
                 continue  # timestamps also list frames of chunks not downloaded
             counts.read += 1
             if not poses["valid"][i]:
-                counts.no_pose += 1
+                counts.drop("no_pose", path)
                 continue
             size = images.probe_size(path)
             if size is None:
-                counts.unreadable += 1
+                counts.drop("unreadable", path)
                 log.warning("unreadable image %s; skipped", path)
                 continue
             if size not in camera_cache:
@@ -604,7 +604,7 @@ def _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts) -> list[Cap
     out = []
     for cap, label in zip(caps, labels):
         if label < 0:
-            counts.no_viewpoint += 1
+            counts.drop("no_viewpoint", cap.image_path)
             continue
         out.append(dataclasses.replace(cap, viewpoint=names[label]))
     return out

@@ -121,19 +121,25 @@ def _is_scene(folder: Path) -> bool:
 
 
 def find_scenes(root: Path) -> dict[str, Path]:
-    """Scene name -> folder, for both nestings; raises ``LayoutError`` if there is none."""
+    """Scene name -> folder, for both nestings; raises ``LayoutError`` if there is none.
+
+    Once one folder holds time-named images, every folder beside it that holds images is a
+    scene too, even if none of its names is a time: ``read`` then counts and names those
+    images (no time) instead of leaving the scene out unseen, and a split that loses its
+    scenes that way is an error of the builder, not another scene silently held out.
+    """
     root = Path(root)
     if not root.is_dir():
         raise LayoutError(f"{root} is not a folder; expected a {DATASET} root")
     base = root / "images" if (root / "images").is_dir() else root
-    scenes = {
-        p.name: p
+    candidates = [
+        p
         for p in sorted(base.iterdir())
-        if p.is_dir()
-        and p.name not in _NOT_SCENES
-        and not p.name.startswith((".", "_"))
-        and _is_scene(p)
-    }
+        if p.is_dir() and p.name not in _NOT_SCENES and not p.name.startswith((".", "_"))
+    ]
+    scenes = {p.name: p for p in candidates if _is_scene(p)}
+    if scenes:
+        scenes = {p.name: p for p in candidates if p.name in scenes or _image_files(p)}
     if not scenes and _is_scene(root):
         scenes = {root.name: root}
     if not scenes:
@@ -469,13 +475,13 @@ def read(
             if when is None:
                 naive = parse_name_time(path.name)
                 if naive is None:
-                    counts.no_time += 1
+                    counts.drop("no_time", path)
                     log.debug("%s: no YYYYMMDD_HHMMSS in the name and not in %s", path, csv_path)
                     continue
                 when = naive.replace(tzinfo=name_tz).astimezone(tz)
             size = images.probe_size(path)
             if size is None:
-                counts.unreadable += 1
+                counts.drop("unreadable", path)
                 log.warning("unreadable image %s; skipped", path)
                 continue
             camera = cameras.setdefault(size, images.pinhole_guess(*size))

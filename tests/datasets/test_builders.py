@@ -221,6 +221,28 @@ def test_split_viewpoints():
     assert real == {"train": ["a", "b"], "test": ["c"]}
 
 
+def test_a_split_that_loses_its_viewpoints_is_an_error(tmp_path):
+    # Issue 14, item 7: the would-be test scene (sorted last, no list in data_specs) whose
+    # files are not named by time was left out unseen, and another scene held out instead.
+    import cv2
+
+    for scene, names in (("a", ["20100601_080000"]), ("b", ["20100601_080000"]),
+                         ("c", ["IMG_0001", "IMG_0002"])):
+        for n in names:
+            (tmp_path / scene).mkdir(exist_ok=True)
+            cv2.imwrite(str(tmp_path / scene / f"{n}.jpg"), np.full((8, 8, 3), 99, np.uint8))
+    found = builder_lib.layout_viewpoints("webcam_clipart", tmp_path)
+    assert found == ["a", "b", "c"]
+    with pytest.raises(LayoutError, match=r"split 'test' \(c\) lost all its viewpoints"):
+        builder_lib.split_viewpoints("webcam_clipart", "real", ["a", "b"], found=found)
+    # A training scene lost (counted and named by the reader) leaves a working split.
+    assert builder_lib.split_viewpoints("webcam_clipart", "real", ["a", "c"],
+                                        found=found) == {"train": ["a"], "test": ["c"]}
+    cmu_found = ["slice6/", "slice8/"]
+    with pytest.raises(LayoutError, match=r"split 'test' \(slice8/\) lost"):
+        builder_lib.split_viewpoints("cmu_seasons", "real", ["slice6/vp0000"], found=cmu_found)
+
+
 def test_records_to_examples_refuses_other_descriptors():
     n = 2
     records = {

@@ -256,3 +256,21 @@ def test_wrong_name_clock_is_reported(tmp_path, caplog):
     _scene(root / "cam", ["20100601_150000"])
     (cap,) = webcam_clipart.read(root, timezone="America/Phoenix", name_timezone="UTC")
     assert cap.time == dt.datetime(2010, 6, 1, 8, 0, tzinfo=zoneinfo.ZoneInfo("America/Phoenix"))
+
+
+# Issue 14, item 7: images whose names are no time are counted and named, never unseen.
+
+def test_images_without_a_time_are_counted_and_named(tmp_path, caplog):
+    _scene(tmp_path / "houseA", ["20100601_080000"])
+    _frame(tmp_path / "houseA" / "holiday.jpg")
+    _scene(tmp_path / "zz_nameless", ["IMG_0001", "IMG_0002"])  # a scene of camera names
+    assert set(webcam_clipart.find_scenes(tmp_path)) == {"houseA", "zz_nameless"}
+    with caplog.at_level(logging.INFO):
+        caps = webcam_clipart.read(tmp_path)
+    assert [c.image_id for c in caps] == ["houseA/20100601_080000.jpg"]
+    summary = [r for r in caplog.records if "read" in r.getMessage() and "kept" in r.getMessage()]
+    assert len(summary) == 1 and summary[0].levelno == logging.WARNING
+    msg = summary[0].getMessage()
+    assert "4 read" in msg and "3 no time" in msg and "1 kept" in msg
+    for name in ("holiday.jpg", "IMG_0001.jpg", "IMG_0002.jpg"):
+        assert name in msg
