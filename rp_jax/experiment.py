@@ -67,11 +67,10 @@ def build_dataset(config, workdir: Path) -> dict:
     builder = loading.get_builder(
         config.dataset, config=config.data_config, data_dir=config.data_dir or None, **kwargs
     )
-    if not builder.is_prepared():
-        import tensorflow_datasets as tfds
+    from rp_jax.datasets import provenance
 
-        dl = tfds.download.DownloadConfig(manual_dir=config.manual_dir or None)
-        builder.download_and_prepare(download_config=dl)
+    # Builds unless built; a real dataset built from another download is refused.
+    provenance.prepare(builder, config.manual_dir or None)
     keys = tuple(dict.fromkeys(_model_keys() + RECORD_KEYS))
     return {
         split: loading.load_columns(

@@ -102,9 +102,7 @@ def _print_counts(name: str, config: str, data_dir) -> None:
 
 
 def _build(args) -> int:
-    import tensorflow_datasets as tfds
-
-    from rp_jax.datasets import loading
+    from rp_jax.datasets import loading, provenance
 
     if args.manual_dir is not None and args.config != "real":
         raise _UsageError(f"--manual-dir is for --config real, not {args.config}")
@@ -122,13 +120,10 @@ def _build(args) -> int:
         workers=args.workers,
     )
     start = time.perf_counter()
-    if builder.is_prepared():
+    # A real dataset already built there must have been built from this --manual-dir.
+    if not provenance.prepare(builder, args.manual_dir):
         print(f"{args.name}/{args.config} already built in {builder.data_dir}")
     else:
-        config = tfds.download.DownloadConfig(
-            manual_dir=None if args.manual_dir is None else str(args.manual_dir)
-        )
-        builder.download_and_prepare(download_config=config)
         print(
             f"built {args.name}/{args.config} in {time.perf_counter() - start:.1f} s "
             f"-> {builder.data_dir}"

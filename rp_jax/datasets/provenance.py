@@ -1,0 +1,179 @@
+"""What a built real dataset was built from, so that another download is never read as it.
+
+A real build (``--config real``) reads the download in ``manual_dir``, and TFDS keys what it
+builds by the data directory alone: without more, building webcam_clipart/real from a
+second download B into a data directory already holding it built from A prints "already
+built" and A's counts, and an experiment on B trains and tests on A's records.
+
+So ``prepare`` writes, next to the built records, ``built_from.json``: a fingerprint of the
+layout it was built from (every file's path relative to the root, its size and mtime;
+hashed) and of the labelling (the builder's version and config, the ground-truth settings,
+the data spec). A later ``prepare`` with a ``manual_dir`` recomputes both and refuses, naming
+what differs and what to do, when they are not the same.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import os
+from pathlib import Path
+
+from rp_jax.sources.layout import LayoutError
+
+__all__ = [
+    "BUILT_FROM_JSON",
+    "BuiltFromAnotherLayoutError",
+    "labelling_fingerprint",
+    "layout_fingerprint",
+    "prepare",
+]
+
+log = logging.getLogger(__name__)
+
+BUILT_FROM_JSON = "built_from.json"
+
+
+class BuiltFromAnotherLayoutError(LayoutError):
+    """A built real dataset was built from another layout or labelling than the one given.
+
+    A ``LayoutError``, so that every command reports it in one line (exit status 2).
+    """
+
+
+def layout_fingerprint(root: str | os.PathLike) -> dict:
+    """Files, bytes and a digest of (relative path, size, mtime in ns) of every file.
+
+    Hidden files and folders (names starting with ``.``) are left out: they are not part
+    of a dataset's layout (``.DS_Store``, editor files).
+    """
+    root = Path(root).absolute()
+    h = hashlib.sha256()
+    files, total = 0, 0
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        for name in sorted(filenames):
+            if name.startswith("."):
+                continue
+            path = Path(dirpath) / name
+            try:
+                st = path.stat()
+            except OSError:  # a dangling link: not a file of the layout
+                continue
+            rel = path.relative_to(root).as_posix()
+            h.update(f"{rel}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+            files += 1
+            total += st.st_size
+    return {"root": str(root), "files": files, "bytes": total, "digest": h.hexdigest()}
+
+
+def labelling_fingerprint(builder) -> dict:
+    """What turns the layout into records: builder version and config, ground truth, spec."""
+    from rp_jax.datasets.builder import ground_truth_config
+    from rp_jax.schedule import load_spec
+
+    cfg = builder.builder_config
+    payload = {
+        "dataset": builder.DATASET,
+        "version": str(builder.VERSION),
+        "config": {
+            "name": cfg.name,
+            "max_keypoints": cfg.max_keypoints,
+            "records_per_image": cfg.records_per_image,
+            "seed": cfg.seed,
+        },
+        "ground_truth": dataclasses.asdict(ground_truth_config(builder.DATASET,
+                                                               cfg.max_keypoints)),
+        "data_spec": load_spec(builder.DATASET),
+    }
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return {"digest": hashlib.sha256(text.encode()).hexdigest(), **payload}
+
+
+def _path(builder) -> Path:
+    return Path(builder.data_dir) / BUILT_FROM_JSON
+
+
+def _check(builder, manual_dir: Path) -> None:
+    path = _path(builder)
+    where = f"{builder.name}/{builder.builder_config.name} in {builder.data_dir}"
+    if not path.is_file():
+        log.warning(
+            "%s was built before builds recorded their layout: it cannot be checked against "
+            "%s; delete %s to rebuild it from there", where, manual_dir, builder.data_dir
+        )
+        return
+    built = json.loads(path.read_text())
+    layout = layout_fingerprint(manual_dir)
+    labelling = labelling_fingerprint(builder)
+    old_layout, old_labelling = built.get("layout", {}), built.get("labelling", {})
+    remedy = (
+        f"give another TFDS data directory (--data-dir of `python -m rp_jax.datasets build`, "
+        f"--tfds-dir of the experiments) for this one, or delete {builder.data_dir} to "
+        "rebuild it there"
+    )
+    if old_layout.get("digest") != layout["digest"]:
+        same_root = old_layout.get("root") == layout["root"]
+        raise BuiltFromAnotherLayoutError(
+            f"{where} was built from {old_layout.get('root')} ({old_layout.get('files')} files, "
+            f"{old_layout.get('bytes')} bytes), not from {layout['root']} ({layout['files']} "
+            f"files, {layout['bytes']} bytes"
+            + ("; the same folder, but its files changed since" if same_root else "")
+            + f"): {remedy}"
+        )
+    if old_labelling.get("digest") != labelling["digest"]:
+        changed = sorted(k for k in labelling if k != "digest"
+                         and old_labelling.get(k) != json.loads(json.dumps(labelling[k],
+                                                                            default=str)))
+        raise BuiltFromAnotherLayoutError(
+            f"{where} was labelled with other settings ({', '.join(changed) or 'unknown'} "
+            f"differ): {remedy}"
+        )
+
+
+def _record(builder, layout: dict) -> None:
+    payload = {"layout": layout, "labelling": labelling_fingerprint(builder)}
+    path = _path(builder)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(payload, indent=2, sort_keys=True, default=str) + "\n")
+    os.replace(tmp, path)
+
+
+def _manual_dir(builder, manual_dir) -> Path:
+    """The folder a real build reads: the one given, else TFDS's default manual dir."""
+    if manual_dir is not None:
+        return Path(manual_dir).absolute()
+    return (Path(builder._data_dir_root) / "downloads" / "manual").absolute()
+
+
+def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
+    """Build ``builder`` unless built; a real build records and checks what it was built from.
+
+    Args:
+      builder: a ``RepeatabilityBuilder`` (``loading.get_builder``).
+      manual_dir: the download a real config reads (default: TFDS's
+        ``<data_dir>/downloads/manual``).
+
+    Returns:
+      True if it was built now, False if it was already built.
+
+    Raises:
+      BuiltFromAnotherLayoutError: a real dataset already built there was built from
+        another layout (other files, sizes or times) or with other labelling settings.
+    """
+    import tensorflow_datasets as tfds
+
+    real = builder.builder_config.source == "real"
+    if builder.is_prepared():
+        if real:
+            _check(builder, _manual_dir(builder, manual_dir))
+        return False
+    # Fingerprinted before the build: what was there when it was read.
+    layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
+    dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir))
+    builder.download_and_prepare(download_config=dl)
+    if layout is not None:
+        _record(builder, layout)
+    return True

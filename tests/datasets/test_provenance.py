@@ -1,0 +1,70 @@
+"""A built real dataset knows what it was built from (issue 14, item 1)."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+from rp_jax.datasets import __main__ as cli
+from rp_jax.datasets import provenance
+
+STAMPS = ("20100601_080000", "20100601_083000", "20100602_080000")
+
+
+def _download(root, seed):
+    """A real Webcam Clip Art layout: two static scenes of textured frames."""
+    rng = np.random.default_rng(seed)
+    for scene in ("houseA", "houseB"):
+        base = cv2.GaussianBlur(rng.integers(0, 255, (72, 96, 3), np.uint8), (0, 0), 1.5)
+        for k, stamp in enumerate(STAMPS):
+            (root / scene).mkdir(parents=True, exist_ok=True)
+            frame = np.clip(base.astype(int) + 4 * k, 0, 255).astype(np.uint8)
+            assert cv2.imwrite(str(root / scene / f"{stamp}.png"), frame)
+    return root
+
+
+def _build(manual, tfds_dir):
+    return cli.main(["build", "webcam_clipart", "--config", "real", "--manual-dir", str(manual),
+                     "--data-dir", str(tfds_dir), "--workers", "1"])
+
+
+def test_a_second_download_is_refused_not_read_as_the_first(tmp_path, capsys):
+    a, b = _download(tmp_path / "A", 0), _download(tmp_path / "B", 1)
+    tfds_dir = tmp_path / "tfds"
+    assert _build(a, tfds_dir) == 0
+    built = next(tfds_dir.glob("webcam_clipart/real/*/" + provenance.BUILT_FROM_JSON))
+    record = json.loads(built.read_text())
+    assert record["layout"]["root"] == str(a) and record["layout"]["files"] == 6
+    capsys.readouterr()
+
+    assert _build(a, tfds_dir) == 0  # the same download: already built
+    assert "already built" in capsys.readouterr().out
+
+    assert _build(b, tfds_dir) == 2  # another download: refused, not A's counts
+    err = capsys.readouterr().err
+    assert f"built from {a}" in err and f"not from {b}" in err and "--data-dir" in err
+
+    frame = a / "houseA" / f"{STAMPS[0]}.png"  # the same folder, a file rewritten
+    st = frame.stat()
+    os.utime(frame, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    assert _build(a, tfds_dir) == 2
+    assert "its files changed since" in capsys.readouterr().err
+
+
+def test_labelling_settings_are_part_of_the_fingerprint(tmp_path, monkeypatch):
+    from rp_jax.datasets import loading
+
+    a = _download(tmp_path / "A", 0)
+    builder = loading.get_builder("webcam_clipart", config="real", data_dir=tmp_path / "t",
+                                  workers=1)
+    assert provenance.prepare(builder, a) is True
+    assert provenance.prepare(builder, a) is False
+    fp = provenance.labelling_fingerprint(builder)
+    monkeypatch.setattr(provenance, "labelling_fingerprint",
+                        lambda b: {**fp, "digest": "other", "version": "0.0.1"})
+    with pytest.raises(provenance.BuiltFromAnotherLayoutError, match="version differ"):
+        provenance.prepare(builder, a)
