@@ -267,7 +267,7 @@ def run(
     stems = _output_stems(paths)
     times = CaptureTimes(captured, hint="give --captured TIME")
     whens = [times(p) for p in paths]  # every capture time is known before any work
-    names = hloc.list_names(features) if features is not None else None
+    names = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
     predictor = predictor if predictor is not None else load_predictor(model)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -276,7 +276,7 @@ def run(
         rgb = load_image(path)
         given = scales = None
         if features is not None:
-            key = hloc.find_name(names, path.as_posix())
+            key = names.find(path.as_posix())
             if key is None:
                 raise InputError(f"--features {features}: no keypoints for image {path}")
             f = hloc.read_local_features(features, key)

@@ -246,7 +246,7 @@ def describe_map(
     n_obs = map_points.num_observations
     obs_desc: np.ndarray | None = None
     image_desc: dict[str, np.ndarray] = {}
-    names_h5 = hloc.list_names(features) if features is not None else None
+    names_h5 = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
     order = np.argsort(map_points.obs_image_id, kind="stable")
     ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
     groups = {int(i): order[s:e] for i, s, e in zip(ids, starts, np.append(starts[1:], len(order)))}
@@ -255,7 +255,7 @@ def describe_map(
         sel = groups.get(int(image_id), np.zeros(0, np.int64))
         model_xy = np.array([p.xy for p in image.points2D], np.float64).reshape(-1, 2)
         if features is not None:
-            key = hloc.find_name(names_h5, image.name)
+            key = names_h5.find(image.name)
             if key is None:
                 raise LayoutError(f"{features}: no features for database image {image.name!r}")
             f = hloc.read_local_features(features, key)

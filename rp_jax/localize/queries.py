@@ -108,11 +108,6 @@ def read_poses(path: str | os.PathLike) -> dict[str, tuple[np.ndarray, np.ndarra
         raise LayoutError(str(err)) from err
 
 
-def _lookup(table: Mapping[str, object], name: str):
-    key = hloc.find_name(table.keys(), name)
-    return None if key is None else table[key]
-
-
 def query_images(
     folder: str | os.PathLike,
     description: MapDescription,
@@ -143,6 +138,7 @@ def query_images(
     folder = Path(folder)
     names = list_images(folder)
     intrinsics = dict(intrinsics or {})
+    intrinsics_names = hloc.NameIndex(intrinsics)
     cams = list((map_cameras or {}).values())
     if description.local_source == SIFT and features is not None:
         raise LayoutError(f"--features {features}: the map was described with SIFT; localize "
@@ -154,13 +150,14 @@ def query_images(
     if description.vocabulary.size == 0 and global_features is None:
         raise LayoutError(f"the map's global descriptors come from {description.global_source}: "
                           "give the queries' global descriptors (--global-features)")
-    names_h5 = hloc.list_names(features) if features is not None else []
+    names_h5 = hloc.NameIndex(hloc.list_names(features) if features is not None else [])
     global_h5 = (hloc.read_global_descriptors(global_features, names)
                  if global_features is not None else None)
     out = []
     for name in names:
         path = folder / name
-        camera = _lookup(intrinsics, name)
+        key = intrinsics_names.find(name)
+        camera = None if key is None else intrinsics[key]
         if camera is None:
             size = images.probe_size(path)
             if len(cams) == 1 and size == (int(cams[0].width), int(cams[0].height)):
@@ -171,7 +168,7 @@ def query_images(
                                   "only when it has exactly one of the query's size)")
         K, dist, w, h = opencv_camera(camera)
         if features is not None:
-            key = hloc.find_name(names_h5, name)
+            key = names_h5.find(name)
             if key is None:
                 raise LayoutError(f"{features}: no features for query {name!r}")
             f = hloc.read_local_features(features, key)

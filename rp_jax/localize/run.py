@@ -147,6 +147,7 @@ def localize_folder(
                            features=features, global_features=global_features,
                            max_keypoints=max_keypoints)
     poses, per_query, errors = {}, {}, {}
+    gt_names = hloc.NameIndex(gt or {})
     for q in queries:
         r = localize(q, lmap, num_retrieved=num_retrieved, ratio=match_ratio,
                      reprojection_error=reprojection_error, min_inliers=min_inliers, seed=seed)
@@ -154,7 +155,7 @@ def localize_folder(
         per_query[q.name] = {"localized": bool(r.success), "matches": int(r.num_matches),
                              "inliers": int(r.pose.num_inliers), "retrieved": r.retrieved[:3]}
         if gt is not None:
-            key = hloc.find_name(gt.keys(), q.name)
+            key = gt_names.find(q.name)
             if key is None:
                 continue
             R, t = gt[key]

@@ -124,11 +124,11 @@ def _summarize(args) -> int:
             raise
         raise InputError(str(err)) from err
     for r in records:
-        when = f"slot {r['slot']}" if "slot" in r else (
-            f"at {r['at']:%Y-%m-%d %H:%M}" if r.get("at") else "")
-        print(f"{r['method']} {when}: kept {r['kept_points']} of {r['map_points']} points "
-              f"({r['parts']} parts, ratio {r['ratio']:g}; min {r['kept_points_per_image']['min']}"
-              f" per database image) -> {r['folder']}")
+        when = f" slot {r['slot']}" if "slot" in r else (
+            f" at {r['at']:%Y-%m-%d %H:%M}" if r.get("at") else "")
+        print(f"{r['method']}{when}: kept {r['kept_points']} of {r['map_points']} points "
+              f"({r['parts']} parts, ratio {r['ratio']:g}; every database image keeps >= "
+              f"{r['kept_points_per_image']['min']}) -> {r['folder']}")
     return 0
 
 

@@ -30,6 +30,7 @@ from rp_jax.sources.layout import LayoutError
 
 __all__ = [
     "LocalFeatures",
+    "NameIndex",
     "find_name",
     "list_names",
     "read_global_descriptors",
@@ -87,28 +88,43 @@ def list_names(path: str | os.PathLike) -> list[str]:
     return sorted(names)
 
 
-def find_name(names: Iterable[str], wanted: str) -> str | None:
-    """The name in ``names`` that stands for the image ``wanted``, or None.
+class NameIndex:
+    """Finds the name that stands for an image among many (``find``), in O(1) per lookup.
 
-    An exact match first; else the name sharing the most trailing path components with
-    ``wanted`` (at least the file name: ``db/img1.jpg`` for ``/data/db/img1.jpg`` or for
+    An exact match first; else the name sharing the most trailing path components with the
+    one wanted (at least the file name: ``db/img1.jpg`` for ``/data/db/img1.jpg`` or for
     ``img1.jpg``). A tie between several names gives None (ambiguous).
     """
-    names = list(names)
-    if wanted in names:
-        return wanted
-    w = Path(wanted).parts
-    best, hits = 0, []
-    for n in names:
-        p = Path(n).parts
-        k = 0
-        while k < min(len(p), len(w)) and p[-1 - k] == w[-1 - k]:
-            k += 1
-        if k > best:
-            best, hits = k, [n]
-        elif k == best and k > 0:
-            hits.append(n)
-    return hits[0] if best > 0 and len(hits) == 1 else None
+
+    def __init__(self, names: Iterable[str]):
+        self.names = set(names)
+        self._by_file: dict[str, list[tuple[str, ...]]] = {}
+        for n in self.names:
+            parts = Path(n).parts
+            if parts:
+                self._by_file.setdefault(parts[-1], []).append(parts)
+
+    def find(self, wanted: str) -> str | None:
+        if wanted in self.names:
+            return wanted
+        w = Path(wanted).parts
+        if not w:
+            return None
+        best, hits = 0, []
+        for p in self._by_file.get(w[-1], ()):
+            k = 1
+            while k < min(len(p), len(w)) and p[-1 - k] == w[-1 - k]:
+                k += 1
+            if k > best:
+                best, hits = k, [p]
+            elif k == best:
+                hits.append(p)
+        return "/".join(hits[0]) if len(hits) == 1 else None
+
+
+def find_name(names: Iterable[str], wanted: str) -> str | None:
+    """The name in ``names`` that stands for the image ``wanted``, or None (``NameIndex``)."""
+    return NameIndex(names).find(wanted)
 
 
 def _group(f, path: Path, name: str):
@@ -171,10 +187,11 @@ def read_global_descriptors(
     path = Path(path)
     available = list_names(path)
     wanted = available if names is None else list(names)
+    index = NameIndex(available)
     out = {}
     with _open(path) as f:
         for name in wanted:
-            key = find_name(available, name)
+            key = index.find(name)
             if key is None:
                 raise LayoutError(f"{path}: no global descriptor for image {name!r}")
             g = f[key]
