@@ -272,7 +272,7 @@ def describe_map(
                 obs_desc[sel] = desc[map_points.obs_point2D_idx[sel]]
             continue
         path = Path(image_dir) / image.name
-        rgb = images.read_rgb(path)
+        rgb = images.read_rgb(path) if path.is_file() else None
         if rgb is None:
             raise FileNotFoundError(f"{path}: database image of the model is missing or "
                                     "unreadable")

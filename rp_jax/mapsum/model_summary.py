@@ -112,7 +112,7 @@ def observation_repeatability(
     for image_id, image in tqdm(seen, desc="map repeatability", leave=False,
                                 disable=not progress):
         path = image_dir / image.name
-        rgb = images_lib.read_rgb(path)
+        rgb = images_lib.read_rgb(path) if path.is_file() else None
         if rgb is None:
             raise FileNotFoundError(f"{path}: database image of the model is missing or "
                                     "unreadable")
