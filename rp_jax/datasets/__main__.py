@@ -205,10 +205,11 @@ def main(argv: list[str] | None = None) -> int:
         logging.getLogger(noisy).setLevel(logging.WARNING)
     from rp_jax.datasets.loading import NotBuiltError
     from rp_jax.sources.layout import LayoutError
+    from rp_jax.sources.synthetic.output_folder import OutputFolderError
 
     try:
         return _build(args) if args.command == "build" else _curves(args)
-    except (_UsageError, NotBuiltError, LayoutError) as err:
+    except (_UsageError, NotBuiltError, LayoutError, OutputFolderError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
 

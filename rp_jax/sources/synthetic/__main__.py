@@ -3,11 +3,13 @@
 Usage::
 
     python -m rp_jax.sources.synthetic PRESET OUT_DIR [--size tiny|small|full] [--seed N]
-                                       [--workers N] [--quiet]
+                                       [--workers N] [--quiet] [--overwrite]
     python -m rp_jax.sources.synthetic contact-sheet OUT.png [--seed N] [--scene I]
 
 PRESET is ``webcam_clipart``, ``cmu_seasons`` or ``robotcar`` (see ``presets``). A run
-is resumable (frames already written are skipped) and deterministic for a seed.
+is resumable (frames already written are skipped) and deterministic for a seed. OUT_DIR
+must be new, empty, or a render of the same parameters (``_synthetic/parameters.json``);
+``--overwrite`` writes into any other folder.
 """
 
 from __future__ import annotations
@@ -66,6 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
             help="rendering processes (default: one per core)",
         )
         p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument(
+            "--overwrite",
+            action="store_true",
+            help="write into OUT_DIR although the generator did not write it, or wrote it "
+            "with other parameters (deleted first)",
+        )
     p = sub.add_parser(CONTACT_SHEET, help="render a webcam through a day and a year")
     p.add_argument("out_png", type=Path, help="day sheet PNG; the year sheet is <stem>_year.png")
     p.add_argument("--seed", type=_non_negative_int, default=0)
@@ -97,14 +105,21 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.out_dir.exists() and not args.out_dir.is_dir():
         parser.error(f"OUT_DIR {args.out_dir} exists and is not a directory")
-    out = generate(
-        args.command,
-        args.out_dir,
-        size=args.size,
-        seed=args.seed,
-        workers=args.workers,
-        progress=not args.quiet,
-    )
+    from rp_jax.sources.synthetic.output_folder import OutputFolderError
+
+    try:
+        out = generate(
+            args.command,
+            args.out_dir,
+            size=args.size,
+            seed=args.seed,
+            workers=args.workers,
+            progress=not args.quiet,
+            overwrite=args.overwrite,
+        )
+    except OutputFolderError as err:  # not its folder: nothing was written
+        print(f"{parser.prog}: error: {err}", file=sys.stderr)
+        return 2
     print(out)
     return 0
 

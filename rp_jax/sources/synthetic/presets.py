@@ -1133,12 +1133,17 @@ def generate(
     seed: int = 0,
     workers: int | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Render a preset into ``out_dir`` in its real dataset's layout.
 
     Resumable: frames whose files exist are skipped (each is written under a temporary
     name and renamed, so an existing file is complete); the metadata files are rewritten
     deterministically at the end. The same ``seed`` gives the same files.
+
+    Only into its own folder: ``output_folder.claim`` refuses a non-empty folder the
+    generator did not write, or one it rendered with other parameters, unless
+    ``overwrite``; ``_synthetic/parameters.json`` names every parameter of the render.
 
     Args:
       preset: ``"webcam_clipart"``, ``"cmu_seasons"`` or ``"robotcar"``.
@@ -1147,20 +1152,34 @@ def generate(
       seed: world and capture seed.
       workers: processes rendering in parallel (default: one per available core).
       progress: show a tqdm progress bar.
+      overwrite: write into a folder of other parameters (deleted first) or one the
+        generator did not write (every frame rendered over its files).
 
     Returns:
       ``out_dir``.
+
+    Raises:
+      output_folder.OutputFolderError: ``out_dir`` is not the generator's folder for these
+        parameters and ``overwrite`` is not set.
     """
+    from rp_jax.sources.synthetic import output_folder
+
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise NotADirectoryError(f"output {out_dir} exists and is not a directory")
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     the_plan = plan(preset, out_dir, size=size, seed=seed)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    parameters = {"generator": output_folder.GENERATOR, "preset": preset, "size": size,
+                  "seed": seed, "world": WORLD_VERSION}
+    if output_folder.claim(out_dir, parameters, overwrite=overwrite):
+        for job in the_plan.jobs:  # a folder not ours: no file of it passes for a frame
+            for path in job.outputs:
+                path.unlink(missing_ok=True)
     start = time.perf_counter()
     rendered = run_jobs(the_plan.jobs, workers=workers or default_workers(), progress=progress)
     the_plan.finalize()
+    output_folder.mark(out_dir, parameters)
     log.info(
         "%s (%s, seed %d): %d frames, %d rendered, %.1f s -> %s",
         preset,
@@ -1175,13 +1194,7 @@ def generate(
     layouts.write_text_atomic(
         out_dir / SYNTHETIC_DIR / "generation.json",
         json.dumps(
-            {
-                "preset": preset,
-                "size": size,
-                "seed": seed,
-                "world": WORLD_VERSION,
-                "frames": len(the_plan.jobs),
-            },
+            {**parameters, "frames": len(the_plan.jobs)},
             indent=2,
         )
         + "\n",
