@@ -1,13 +1,15 @@
-"""Solar position for the synthetic world (Sec. V: "sun direction is an important factor").
+"""Solar position at an instant and place (Sec. V: "sun direction is an important factor").
 
 The paper's discussion (Sec. V) names the sun direction as the main driver of how an
-interest point looks at a given time; the synthetic world therefore lights its scenes with
-the *real* sun for the capture's instant and place. This module implements the NOAA solar
+interest point looks at a given time; the synthetic world lights its scenes with the *real*
+sun for the capture's instant and place, and the Webcam Clip Art reader computes the sun
+angles a release does not ship. It sits with the foundations so that both can use it
+(readers must not import the synthetic world). This module implements the NOAA solar
 calculator (the algorithm of the NOAA Global Monitoring Laboratory spreadsheet, after Meeus,
 "Astronomical Algorithms"), accurate to about 0.01 deg for years 1800-2100, which is far
 below the 0.5 deg the renderer needs. It is pure NumPy and vectorised over instants.
 
-World frame used by the whole synthetic package: x east, y north, z up, metres.
+World frame (the synthetic package's): x east, y north, z up, metres.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rp_jax.sources.synthetic.sun import solar_position, sun_direction
+from rp_jax.sun import solar_position, sun_direction
 
 pvlib = pytest.importorskip("pvlib")
 

@@ -346,7 +346,7 @@ def check_sun_angles(captures: Sequence[Capture]) -> dict[str, SunCheck]:
     Returns:
       Scene -> ``SunCheck`` for every scene with at least one comparable frame.
     """
-    from rp_jax.sources.synthetic import sun  # NOAA solar position, pure NumPy
+    from rp_jax import sun  # NOAA solar position, pure NumPy
 
     by_scene: dict[str, list[Capture]] = {}
     for c in captures:

@@ -25,7 +25,7 @@ import functools
 
 import numpy as np
 
-from rp_jax.sources.synthetic import sun as sunlib
+from rp_jax import sun as sunlib
 
 __all__ = [
     "Conditions",

@@ -114,10 +114,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rp_jax import categories
+from rp_jax import categories, sun
 from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Camera
-from rp_jax.sources.synthetic import layouts, sun
+from rp_jax.sources.synthetic import layouts
 from rp_jax.sources.synthetic.route import CameraMount, LocalTangentFrame, Route, camera_pose
 
 __all__ = [

@@ -23,9 +23,9 @@ import pycolmap
 import pytest
 import scipy.io.matlab
 
-from rp_jax import categories
+from rp_jax import categories, sun
 from rp_jax.schedule import preset as schedule_preset
-from rp_jax.sources.synthetic import layouts, presets, sun
+from rp_jax.sources.synthetic import layouts, presets
 from rp_jax.sources.synthetic.route import rotation_ned
 
 # --------------------------------------------------------------------------- a tiny exact world
