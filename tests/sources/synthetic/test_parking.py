@@ -7,7 +7,8 @@ from rp_jax.sources.synthetic import scene
 
 def _timeline(vegetation, hours, slot=3, seed=7, step_h=0.25):
     t0 = 40 * 365 * 24.0  # some instant in 2010, in hours of the UNIX clock
-    return [scene.parked_car(seed, slot, vegetation, t0 + k * step_h) for k in range(int(hours / step_h))]
+    steps = range(int(hours / step_h))
+    return [scene.parked_car(seed, slot, vegetation, t0 + k * step_h) for k in steps]
 
 
 def _stays(timeline):
