@@ -8,10 +8,12 @@ fundamental matrix), and turn the inliers into the repeatability vector y^j with
 Work is cached so that an interrupted build resumes where it stopped:
 
 * ``<cache_dir>/features/<detector-nK>/<viewpoint>/<image>.npz``: one per image (interest
-  points, descriptors, categories); a re-run skips detection for these.
+  points, descriptors, categories); a re-run skips detection for these while the image
+  file's bytes are the same (SHA-1: size and mtime can lie), and reads the categories
+  again when the category map's bytes changed.
 * ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts and a
-  fingerprint of the captures): the records of a finished viewpoint; a re-run with the same
-  captures returns it without recomputing.
+  fingerprint of the captures, their image files' and category maps' bytes): the records
+  of a finished viewpoint; a re-run with the same captures returns it without recomputing.
 
 Neither cache holds the 64x64x3 patches: at 12 KB per interest point they were 95 % of the
 bytes (a full synthetic CMU build cached ~60 GB). Patches are cut from the images when the
@@ -201,17 +203,33 @@ class _StaleCache(Exception):
     """A cached result of an image file that has changed since."""
 
 
-def _file_stamp(capture: Capture) -> np.ndarray:
-    """(size, mtime in ns) of the capture's image file, or (-1, -1) if there is no file.
+def _file_key(path) -> str:
+    """SHA-1 of a file's bytes, or ``"missing"`` if it cannot be read.
 
-    A cached result is used only while its image file is unchanged: re-rendering the
-    synthetic world or replacing a download's images invalidates it.
+    The key of a cached result: size and mtime can lie (a file rewritten within the
+    mtime's resolution, or copied with its times kept), the bytes cannot; reading an image
+    once more is cheap next to detecting its interest points.
     """
+    if path is None:
+        return "none"
+    h = hashlib.sha1()
     try:
-        st = os.stat(capture.image_path)
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
     except (OSError, TypeError):
-        return np.array([-1, -1], np.int64)
-    return np.array([st.st_size, st.st_mtime_ns], np.int64)
+        return "missing"
+    return h.hexdigest()
+
+
+def _image_key(capture: Capture) -> str:
+    """What the interest points of a capture depend on: the bytes of its image file."""
+    return _file_key(capture.image_path)
+
+
+def _category_key(capture: Capture) -> str:
+    """What its categories depend on: the bytes of its category map (``"none"`` if none)."""
+    return _file_key(capture.meta.get("segmentation_path"))
 
 
 def _feature_path(cache_dir: Path, config: GroundTruthConfig, capture: Capture) -> Path:
@@ -267,14 +285,19 @@ def image_features(
         try:
             cached = _load_npz(path)
             cached.pop("patch", None)  # written by versions that cached patches
-            stamp = cached.pop("file_stamp", None)
-            if stamp is None or not np.array_equal(stamp, _file_stamp(capture)):
+            cached.pop("file_stamp", None)  # (size, mtime) of older versions: not trusted
+            image_key = cached.pop("image_key", None)
+            if image_key is None or str(image_key) != _image_key(capture):
                 raise _StaleCache
-            if load_category is not None and not cached.pop("has_category_map", False):
-                # Cached without categories: read them now (no detection needed).
+            category_key = cached.pop("category_key", None)
+            has_map = bool(cached.pop("has_category_map", False))
+            if load_category is not None and (
+                not has_map or category_key is None or str(category_key) != _category_key(capture)
+            ):
+                # Cached without categories, or its category map changed since: read them
+                # now (no detection needed).
                 size = tuple(int(v) for v in cached["image_size"])
                 cached["category"] = _categories_at(load_category(capture), cached["xy"], size)
-            cached.pop("has_category_map", None)
             return cached
         except _StaleCache:
             logger.info("re-detecting %s: the image changed since it was cached",
@@ -303,7 +326,8 @@ def image_features(
             {
                 **out,
                 "has_category_map": np.array(category_map is not None),
-                "file_stamp": _file_stamp(capture),
+                "image_key": np.array(_image_key(capture)),
+                "category_key": np.array(_category_key(capture)),
             },
         )
     return out
@@ -478,15 +502,17 @@ def _empty_records(num_timestamps: int, desc_width: int) -> dict[str, np.ndarray
 
 
 def _fingerprint(captures: Sequence[Capture], with_categories: bool) -> str:
-    """Hash of what the records depend on besides the config: ids, slots, times, poses, K
-    and each image file's size and modification time.
+    """Hash of what the records depend on besides the config: ids, slots, times, poses, K,
+    the bytes of each image file and, with categories, of each category map.
 
     (What the callables return is not hashed: a changed ``camera_of`` needs a new cache.)
     """
-    h = hashlib.sha1(b"categories" if with_categories else b"")
+    h = hashlib.sha1(b"categories-v2" if with_categories else b"v2")
     for c in captures:
         h.update(json.dumps([c.image_id, int(c.cycle), int(c.slot), c.time.isoformat()]).encode())
-        h.update(_file_stamp(c).tobytes())
+        h.update(_image_key(c).encode())
+        if with_categories:
+            h.update(_category_key(c).encode())
         h.update(np.asarray(c.camera.K, np.float64).tobytes())
         if c.has_pose:
             h.update(c.R.tobytes() + c.t.tobytes())

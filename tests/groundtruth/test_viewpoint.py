@@ -267,3 +267,81 @@ def test_caches_are_redone_when_an_image_file_changes(tmp_path):
     rows = second["image_id"] == on_disk[0].image_id
     first_rows = first["image_id"] == on_disk[0].image_id
     assert not np.array_equal(second["xy"][rows], first["xy"][first_rows])
+
+
+# Issue 14, item 4: caches keyed by what they depend on.
+
+def _bmp_viewpoint(tmp_path, viewpoint, seed):
+    """Captures on disk as BMP: a file of the same image size has the same byte size."""
+    import dataclasses
+
+    import cv2
+
+    caps = _static_viewpoint(viewpoint, seed=seed)[:3]
+    out = []
+    for c in caps:
+        path = tmp_path / "images" / viewpoint / f"{c.image_id}.bmp"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        img = _scenes.IMAGES[f"{viewpoint}/{c.image_id}"]
+        assert cv2.imwrite(str(path), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+        out.append(dataclasses.replace(c, image_path=path))
+    return out
+
+
+def test_caches_see_new_content_behind_the_same_size_and_mtime(tmp_path):
+    import os
+
+    import cv2
+
+    caps = _bmp_viewpoint(tmp_path, "vpsame", seed=10)
+    kw = {"load_image": _scenes.load_from_disk, "num_timestamps": T, "config": STATIC,
+          "with_patches": False}
+    first = label_viewpoint(caps, cache_dir=tmp_path / "cache", **kw)
+    path = caps[0].image_path
+    st = path.stat()
+    other = textured_image(99)  # another scene, written over it: same size, same mtime
+    assert cv2.imwrite(str(path), cv2.cvtColor(other, cv2.COLOR_RGB2BGR))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert (path.stat().st_size, path.stat().st_mtime_ns) == (st.st_size, st.st_mtime_ns)
+    second = label_viewpoint(caps, cache_dir=tmp_path / "cache", **kw)
+    fresh = label_viewpoint(caps, cache_dir=tmp_path / "fresh", **kw)
+    _assert_records_equal(second, fresh)
+    rows = first["image_id"] == caps[0].image_id
+    assert not np.array_equal(first["xy"][rows], second["xy"][second["image_id"] ==
+                                                              caps[0].image_id])
+
+
+def test_caches_see_a_rewritten_category_map(tmp_path):
+    import dataclasses
+
+    import cv2
+
+    caps = _bmp_viewpoint(tmp_path, "vpseg", seed=11)
+    seg = []
+    for c in caps:
+        p = tmp_path / "segmentation" / f"{c.image_id}.png"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        assert cv2.imwrite(str(p), np.full((_scenes.HEIGHT, _scenes.WIDTH), 1, np.uint8))
+        seg.append(dataclasses.replace(c, meta={**c.meta, "segmentation_path": p}))
+
+    def load_category(capture):
+        return cv2.imread(str(capture.meta["segmentation_path"]), cv2.IMREAD_UNCHANGED)
+
+    kw = {"load_image": _scenes.load_from_disk, "num_timestamps": T, "config": STATIC,
+          "with_patches": False, "load_category": load_category}
+    first = label_viewpoint(seg, cache_dir=tmp_path / "cache", **kw)
+    assert (first["category"] == 1).all()
+    for c in seg:  # the maps rewritten: every pixel is now a building (2)
+        cv2.imwrite(str(c.meta["segmentation_path"]),
+                    np.full((_scenes.HEIGHT, _scenes.WIDTH), 2, np.uint8))
+    second = label_viewpoint(seg, cache_dir=tmp_path / "cache", **kw)
+    assert (second["category"] == 2).all()
+    np.testing.assert_array_equal(second["xy"], first["xy"])  # detection was not redone
+    # Without the labels file the features' cache alone must not bring them back either.
+    for f in (tmp_path / "cache").glob("labels/*/*"):
+        f.unlink()
+    for c in seg:
+        cv2.imwrite(str(c.meta["segmentation_path"]),
+                    np.full((_scenes.HEIGHT, _scenes.WIDTH), 3, np.uint8))
+    third = label_viewpoint(seg, cache_dir=tmp_path / "cache", **kw)
+    assert (third["category"] == 3).all()
