@@ -5,7 +5,9 @@ Every experiment takes the same flags::
     --workdir DIR        run directory (default runs/<experiment>_<size>); resumes if present
     --data-dir DIR       a real download in its real layout; absent: the synthetic world
     --size tiny|small|full   synthetic size (default full; ignored with --data-dir)
-    --tfds-dir DIR       where built TFDS datasets are kept (default ./data/tensorflow_datasets)
+    --tfds-dir DIR       where built TFDS datasets are kept (default: $RP_JAX_DATA_DIR, else
+                         data/tensorflow_datasets in the source checkout, whatever the
+                         working directory; ~/.cache/rp_jax/... for an installed wheel)
     --config.FIELD=VALUE any field of the experiment's config, e.g. --config.num_epochs=3
     --cross-validate     instead of the test run: hold out each training viewpoint in turn
                          (rp_jax.crossval); writes <workdir>/crossval/crossval.{json,md}
@@ -23,6 +25,12 @@ from pathlib import Path
 import ml_collections
 
 SIZES = ("tiny", "small", "full")
+
+
+def _default_tfds_dir() -> str:
+    from rp_jax.datasets.loading import DEFAULT_DATA_DIR  # (TFDS-free module)
+
+    return str(DEFAULT_DATA_DIR)
 
 
 def _convert(old, text: str):
@@ -86,7 +94,13 @@ def parse_flags(argv: list[str] | None, name: str,
                         help="a real download in its real layout (default: the synthetic world)")
     parser.add_argument("--size", choices=SIZES, default="full",
                         help="synthetic size (default full)")
-    parser.add_argument("--tfds-dir", type=Path, default=None, help="TFDS data directory")
+    parser.add_argument(
+        "--tfds-dir",
+        type=Path,
+        default=None,
+        help=f"TFDS data directory (default: $RP_JAX_DATA_DIR or {_default_tfds_dir()}, the "
+        "same from any working directory)",
+    )
     if cross_validation:
         parser.add_argument("--cross-validate", action="store_true",
                             help="hold out each training viewpoint in turn instead of testing")

@@ -5,8 +5,11 @@ ready for ``epoch_batches``/``eval_batches``; ``load_columns`` returns any keys 
 columns (text keys as ``str``), e.g. for the ground-truth curves. Neither builds: a missing
 dataset raises with the command that builds it.
 
-Default data directory: ``$RP_JAX_DATA_DIR`` or ``./data/tensorflow_datasets`` (the
-synthetic layouts then go to ``./data/synthetic``).
+Default data directory (``default_data_dir``), the same from any working directory:
+``$RP_JAX_DATA_DIR`` if set; else, in a source checkout (the package beside its
+``pyproject.toml``), ``<checkout>/data/tensorflow_datasets``; else (an installed wheel)
+``$XDG_CACHE_HOME/rp_jax/tensorflow_datasets`` (``~/.cache/rp_jax/...``). The synthetic
+layouts go beside it (``.../data/synthetic``).
 """
 
 from __future__ import annotations
@@ -32,7 +35,26 @@ __all__ = [
     "splits",
 ]
 
-DEFAULT_DATA_DIR = Path("data") / "tensorflow_datasets"
+_PACKAGE_PARENT = Path(__file__).resolve().parents[2]
+
+
+def _checkout_root() -> Path | None:
+    """The source checkout holding this package, if it is one (not site-packages)."""
+    pyproject = _PACKAGE_PARENT / "pyproject.toml"
+    if pyproject.is_file() and 'name = "rp_jax"' in pyproject.read_text(errors="replace"):
+        return _PACKAGE_PARENT
+    return None
+
+
+def _default_root() -> Path:
+    checkout = _checkout_root()
+    if checkout is not None:
+        return checkout / "data"
+    cache = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(cache) / "rp_jax"
+
+
+DEFAULT_DATA_DIR = _default_root() / "tensorflow_datasets"
 _READ_CHUNK = 4096
 
 
@@ -41,7 +63,7 @@ class NotBuiltError(FileNotFoundError):
 
 
 def default_data_dir() -> Path:
-    """``$RP_JAX_DATA_DIR`` if set, else ``./data/tensorflow_datasets``."""
+    """``$RP_JAX_DATA_DIR`` if set, else ``DEFAULT_DATA_DIR`` (see the module docstring)."""
     return Path(os.environ.get("RP_JAX_DATA_DIR", DEFAULT_DATA_DIR))
 
 
