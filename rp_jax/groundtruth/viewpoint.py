@@ -55,6 +55,7 @@ from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.groundtruth import matching, patches, sfm, triangulation, verification
 from rp_jax.groundtruth.config import GroundTruthConfig
 from rp_jax.sources.capture import Capture
+from rp_jax.sources.layout import mixed_sizes_message
 
 __all__ = [
     "RECORD_KEYS",
@@ -258,6 +259,17 @@ def _categories_at(category_map: np.ndarray | None, xy: np.ndarray, size) -> np.
     return cat
 
 
+def _categories_of(capture: Capture, category_map, xy, size) -> np.ndarray:
+    """``_categories_at``, its error naming the image and its category map."""
+    try:
+        return _categories_at(category_map, xy, size)
+    except ValueError as err:
+        raise ValueError(
+            f"{capture.image_path}: {err} (category map "
+            f"{capture.meta.get('segmentation_path', 'from load_category')})"
+        ) from err
+
+
 def image_features(
     capture: Capture,
     *,
@@ -297,7 +309,8 @@ def image_features(
                 # Cached without categories, or its category map changed since: read them
                 # now (no detection needed).
                 size = tuple(int(v) for v in cached["image_size"])
-                cached["category"] = _categories_at(load_category(capture), cached["xy"], size)
+                cached["category"] = _categories_of(capture, load_category(capture),
+                                                    cached["xy"], size)
             return cached
         except _StaleCache:
             logger.info("re-detecting %s: the image changed since it was cached",
@@ -317,7 +330,7 @@ def image_features(
     out = {
         "xy": feats.xy,
         "descriptor": feats.descriptor,
-        "category": _categories_at(category_map, feats.xy, (w, h)),
+        "category": _categories_of(capture, category_map, feats.xy, (w, h)),
         "image_size": np.array([w, h], np.int32),
     }
     if path is not None:
@@ -365,6 +378,15 @@ def _resolve_mode(config: GroundTruthConfig, captures: Sequence[Capture]) -> str
         missing = next(c for c in captures if not c.has_pose)
         raise ValueError(f"verification='pose' but {missing.image_path} has no pose (R, t)")
     return mode
+
+
+def _check_one_size(viewpoint: str, captures: Sequence[Capture], sizes) -> None:
+    """A static camera's images share one size: the < 5 px check compares pixel positions."""
+    by_size: dict[tuple[int, int], list[str]] = {}
+    for c, size in zip(captures, sizes):
+        by_size.setdefault((int(size[0]), int(size[1])), []).append(str(c.image_path))
+    if len(by_size) > 1:
+        raise ValueError(mixed_sizes_message(f"static viewpoint {viewpoint!r}", by_size))
 
 
 def _pose_consistent(K1, R1, t1, K2, R2, t2, x1, x2, config: GroundTruthConfig) -> np.ndarray:
@@ -628,6 +650,8 @@ def label_viewpoint(
         records = _empty_records(num_timestamps, width)
     else:
         mode = _resolve_mode(config, readable)
+        if mode == "static":
+            _check_one_size(viewpoint, readable, [f["image_size"] for f in feats])
         norm = features_lib.descriptor_norm(config.detector)
         descs = [matching.prepare_descriptors(f["descriptor"], norm) for f in feats]
         matches = matching.match_all_pairs(

@@ -28,7 +28,7 @@ import contextlib
 import dataclasses
 import logging
 import zoneinfo
-from collections.abc import Callable, Hashable, Iterable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -43,6 +43,7 @@ __all__ = [
     "ReadCounts",
     "assign_slots",
     "keep_nearest_per_slot",
+    "mixed_sizes_message",
     "require_layout",
     "segmentation_path",
     "zone",
@@ -275,3 +276,20 @@ def segmentation_path(root: Path, image_path: Path, *alternatives: Path) -> Path
         if path.is_file():
             return path
     return None
+
+
+def mixed_sizes_message(what: str, by_size: Mapping[tuple[int, int], Sequence[str]]) -> str:
+    """The error of images of several sizes where a static camera needs one, naming files.
+
+    Args:
+      what: the viewpoint or folder, for the message.
+      by_size: (W, H) -> the files of that size.
+    """
+    ordered = sorted(by_size.items(), key=lambda kv: -len(kv[1]))
+    parts = []
+    for (w, h), names in ordered:
+        shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        parts.append(f"{len(names)} at {w}x{h} ({shown})")
+    return (f"{what} has images of {len(by_size)} sizes: {'; '.join(parts)}. A static camera's "
+            "< 5 px check compares pixel positions, so they must share one size: resize the "
+            "odd ones to the others' size or move them out")

@@ -65,6 +65,7 @@ from rp_jax.sources.layout import (
     ReadCounts,
     assign_slots,
     keep_nearest_per_slot,
+    mixed_sizes_message,
     segmentation_path,
     zone,
 )
@@ -516,7 +517,24 @@ def read(
         assigned = keep_nearest_per_slot(assigned, schedule, counts)
     counts.kept = len(assigned)
     counts.log_summary()
+    _check_one_size_per_scene(assigned, found)
     return assigned
+
+
+def _check_one_size_per_scene(captures: Sequence[Capture], scenes: Mapping[str, Path]) -> None:
+    """Refuse a scene whose kept frames differ in size (a static camera's check is in pixels).
+
+    Half of a scene at 320x240 and half at 640x480 made the < 5 px check compare positions
+    across resolutions, and the labels fell without a word.
+    """
+    by_scene: dict[str, dict[tuple[int, int], list[str]]] = {}
+    for c in captures:
+        by_scene.setdefault(str(c.viewpoint), {}).setdefault(c.camera.size, []).append(
+            c.image_path.name
+        )
+    for scene, by_size in by_scene.items():
+        if len(by_size) > 1:
+            raise LayoutError(mixed_sizes_message(f"{scenes.get(scene, scene)}", by_size))
 
 
 def load_image(capture: Capture) -> np.ndarray | None:

@@ -345,3 +345,32 @@ def test_caches_see_a_rewritten_category_map(tmp_path):
                     np.full((_scenes.HEIGHT, _scenes.WIDTH), 3, np.uint8))
     third = label_viewpoint(seg, cache_dir=tmp_path / "cache", **kw)
     assert (third["category"] == 3).all()
+
+
+def test_static_viewpoint_of_mixed_sizes_is_refused_naming_the_files(tmp_path):
+    # Issue 14, item 5: the < 5 px check across resolutions; any caller of label_viewpoint.
+    import cv2
+
+    caps = _bmp_viewpoint(tmp_path, "vpmixed", seed=12)
+    small = cv2.resize(cv2.imread(str(caps[1].image_path)),
+                       (_scenes.WIDTH // 2, _scenes.HEIGHT // 2))
+    assert cv2.imwrite(str(caps[1].image_path), small)
+    with pytest.raises(ValueError, match=r"'vpmixed' has images of 2 sizes: 2 at .*; "
+                                         r"1 at \d+x\d+ \(.*c0s1\.bmp\)"):
+        label_viewpoint(caps, load_image=_scenes.load_from_disk, num_timestamps=T,
+                        config=STATIC, with_patches=False)
+
+
+def test_a_category_map_of_another_size_names_the_image_and_the_map(tmp_path):
+    import dataclasses
+
+    import cv2
+
+    caps = _bmp_viewpoint(tmp_path, "vpsegsize", seed=13)
+    p = tmp_path / "seg.png"
+    assert cv2.imwrite(str(p), np.zeros((8, 8), np.uint8))
+    caps = [dataclasses.replace(c, meta={**c.meta, "segmentation_path": p}) for c in caps]
+    with pytest.raises(ValueError, match=r"c0s0\.bmp: category map of shape \(8, 8\).*seg\.png"):
+        label_viewpoint(caps, load_image=_scenes.load_from_disk, num_timestamps=T,
+                        config=STATIC, with_patches=False,
+                        load_category=lambda c: cv2.imread(str(c.meta["segmentation_path"]), 0))

@@ -274,3 +274,15 @@ def test_images_without_a_time_are_counted_and_named(tmp_path, caplog):
     assert "4 read" in msg and "3 no time" in msg and "1 kept" in msg
     for name in ("holiday.jpg", "IMG_0001.jpg", "IMG_0002.jpg"):
         assert name in msg
+
+
+def test_a_scene_of_mixed_image_sizes_is_refused_naming_the_files(tmp_path):
+    # Issue 14, item 5: half a scene at another resolution made the < 5 px check compare
+    # pixel positions across sizes, without a word.
+    _scene(tmp_path / "s", ["20100601_080000", "20100601_083000"])
+    _frame(tmp_path / "s" / "20100601_090000.jpg", size=(12, 8))
+    with pytest.raises(LayoutError) as err:
+        webcam_clipart.read(tmp_path)
+    msg = str(err.value)
+    assert "2 sizes" in msg and "2 at 24x16" in msg and "1 at 12x8 (20100601_090000.jpg)" in msg
+    assert str(tmp_path / "s") in msg
