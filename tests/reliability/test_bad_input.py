@@ -1,0 +1,266 @@
+"""The bad-input suite (issue 14): one row per case, from the command or call a user makes.
+
+Each row makes its own tiny input in a temporary folder, runs the command (exit status and
+stderr) or the library call (exception and message), and checks three promises:
+
+* the exit status or exception is the one expected (never a wrong result with exit 0);
+* the message names the bad thing (a file and line, an argument and its range, a flag);
+* the inputs are unchanged (checksums of the input folders before and after).
+
+The silent wrong results and the data loss of the issue's first section are rows here;
+each also has its own regression test beside the module it fixes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+import hashlib
+import json
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+# --------------------------------------------------------------------------- tiny inputs
+
+
+def _checksums(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _webcam_download(root: Path, scenes: dict[str, list[str]], seed: int = 0,
+                     sizes: dict[str, tuple[int, int]] | None = None) -> Path:
+    """A real Webcam Clip Art layout: scene -> frame stems, textured static frames."""
+    rng = np.random.default_rng(seed)
+    sizes = sizes or {}
+    for scene, stems in scenes.items():
+        base = cv2.GaussianBlur(rng.integers(0, 255, (72, 96, 3), np.uint8), (0, 0), 1.5)
+        (root / scene).mkdir(parents=True, exist_ok=True)
+        for k, stem in enumerate(stems):
+            frame = np.clip(base.astype(int) + 4 * k, 0, 255).astype(np.uint8)
+            if stem in sizes:
+                frame = cv2.resize(frame, sizes[stem])
+            assert cv2.imwrite(str(root / scene / f"{stem}.png"), frame)
+    return root
+
+
+DAYS = ["20100601_080000", "20100601_083000", "20100602_080000"]
+
+
+def _cmu_download_with_nan_pose(root: Path) -> Path:
+    from tests.sources.test_cmu_seasons import _layout
+
+    root.mkdir(parents=True)
+    entries, _, _ = _layout(root)
+    gt = root / "slice7" / "ground-truth-database-images-slice7.txt"
+    lines = gt.read_text().splitlines()
+    lines[1] = f"{entries[1][0]} 1 0 0 0 nan 0 0"
+    gt.write_text("\n".join(lines) + "\n")
+    return root
+
+
+@functools.lru_cache(maxsize=1)
+def _predictor():
+    """A predictor of zero weights (validation needs neither training nor initialisation)."""
+    from rp_jax import predict
+    from tests.test_train import SCHEDULE, small_config
+
+    config = small_config()
+    shapes = predict._abstract_params(config, SCHEDULE.num_timestamps)
+    return predict.Predictor(_zeros(shapes), config, SCHEDULE, batch_size=8)
+
+
+def _zeros(tree):
+    import jax
+
+    return jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), tree)
+
+
+def _predictor_call(patches=None, xy=None, times=None, **kwargs):
+    rng = np.random.default_rng(0)
+    patches = rng.integers(0, 256, (2, 64, 64, 3), np.uint8) if patches is None else patches
+    xy = np.full((2, 2), 0.5, np.float32) if xy is None else xy
+    times = [dt.datetime(2020, 5, 3, 9, 0)] * 2 if times is None else times
+    return lambda: _predictor()(patches, xy, times, **kwargs)
+
+
+# --------------------------------------------------------------------------- the table
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One bad input.
+
+    Attributes:
+      name: what is wrong, in a user's words.
+      make: ``tmp_path -> (run, inputs)``: ``run()`` makes the call or runs the command
+        (returning its exit status), ``inputs`` the folders that must not change.
+      expect: the exit status, or the exception type the call raises.
+      names: regexes the message (stderr, or the exception) must match: the bad thing.
+    """
+
+    name: str
+    make: Callable[[Path], tuple[Callable[[], object], list[Path]]]
+    expect: int | type[BaseException]
+    names: tuple[str, ...]
+
+
+def _datasets_build(name: str, manual: Path, tfds_dir: Path) -> Callable[[], int]:
+    from rp_jax.datasets import __main__ as datasets_cli
+
+    return lambda: datasets_cli.main(["build", name, "--config", "real", "--manual-dir",
+                                      str(manual), "--data-dir", str(tfds_dir), "--workers", "1"])
+
+
+def _second_download(tmp: Path):
+    a = _webcam_download(tmp / "A", {"houseA": DAYS, "houseB": DAYS}, seed=0)
+    b = _webcam_download(tmp / "B", {"houseA": DAYS, "houseB": DAYS}, seed=1)
+    assert _datasets_build("webcam_clipart", a, tmp / "tfds")() == 0
+    return _datasets_build("webcam_clipart", b, tmp / "tfds"), [a, b]
+
+
+def _lost_test_scene(tmp: Path):
+    root = _webcam_download(tmp / "dl", {"a": DAYS, "b": DAYS, "c": ["IMG_0001", "IMG_0002"]})
+    return _datasets_build("webcam_clipart", root, tmp / "tfds"), [root]
+
+
+def _mixed_sizes(tmp: Path):
+    root = _webcam_download(tmp / "dl", {"a": DAYS, "b": DAYS},
+                            sizes={"20100601_083000": (48, 36)})
+    return _datasets_build("webcam_clipart", root, tmp / "tfds"), [root]
+
+
+def _cmu_nan_pose(tmp: Path):
+    root = _cmu_download_with_nan_pose(tmp / "dl")
+    return _datasets_build("cmu_seasons", root, tmp / "tfds"), [root]
+
+
+def _synthetic_over_a_download(tmp: Path):
+    from rp_jax.sources.synthetic import __main__ as synthetic_cli
+
+    root = _cmu_download_with_nan_pose(tmp / "copy")  # any download: it must stay as it is
+    return (lambda: synthetic_cli.main(["cmu_seasons", str(root), "--size", "tiny",
+                                        "--workers", "1", "--quiet"])), [root]
+
+
+def _synthetic_other_seed(tmp: Path):
+    from rp_jax.sources.synthetic import __main__ as synthetic_cli
+    from rp_jax.sources.synthetic import presets
+
+    root = tmp / "world"
+    (root / "_synthetic").mkdir(parents=True)
+    (root / "_synthetic" / "generation.json").write_text(json.dumps(
+        {"generator": "rp_jax.sources.synthetic", "preset": "webcam_clipart", "size": "tiny",
+         "seed": 0, "world": presets.WORLD_VERSION, "frames": 1}))
+    _webcam_download(root, {"scene_00": DAYS[:1]})
+    return (lambda: synthetic_cli.main(["webcam_clipart", str(root), "--size", "tiny",
+                                        "--seed", "1", "--quiet"])), [root]
+
+
+def _train(tmp: Path, **overrides):
+    from rp_jax import train
+    from tests.test_train import small_config, task
+
+    return lambda: train.train_and_evaluate(small_config(**overrides), tmp / "run", task(64, 0),
+                                            progress=False)
+
+
+def _nan_learning_rate(tmp: Path):
+    return _train(tmp, learning_rate=float("nan")), []
+
+
+def _another_epoch_count(tmp: Path):
+    _train(tmp, num_epochs=1)()
+    return _train(tmp, num_epochs=2), []
+
+
+def _empty_cmu_folder(tmp: Path):
+    from rp_jax.sources import cmu_seasons
+
+    (tmp / "empty").mkdir()
+    return (lambda: cmu_seasons.read(tmp / "empty")), [tmp / "empty"]
+
+
+def _call(fn: Callable[[], object]):
+    return lambda tmp: (fn, [])
+
+
+def _folds(n: int):
+    from rp_jax import crossval
+
+    return lambda: crossval.viewpoint_folds(np.array(["a", "b", "b"]), num_folds=n)
+
+
+def _cases() -> list[Case]:
+    from rp_jax import train
+    from rp_jax.sources.layout import LayoutError
+
+    pix = np.array([[600.0, 100.0]] * 2, np.float32)
+    return [
+        # Issue 14, item 1: a second download is not read as the first.
+        Case("a second download into a built data dir", _second_download, 2,
+             (r"built from .*/A \(6 files", r"not from .*/B", r"--data-dir")),
+        # Item 2: the predictor mis-scales nothing and accepts nothing out of range.
+        Case("float patches in 0-255", _call(_predictor_call(
+            patches=np.full((2, 64, 64, 3), 200.0, np.float32))), ValueError,
+            (r"float patches must be in \[0, 1\]", r"200")),
+        Case("integer patches above 255", _call(_predictor_call(
+            patches=np.full((2, 64, 64, 3), 300, np.int32))), ValueError,
+            (r"integer patches must be in \[0, 255\]", r"300")),
+        Case("pixel xy without image_size", _call(_predictor_call(xy=pix)), ValueError,
+             (r"xy must be normalised to \[0, 1\]", r"600", r"image_size")),
+        Case("swapped image_size", _call(_predictor_call(xy=pix, image_size=(480, 640))),
+             ValueError, (r"x must be in \[0, 480\]", r"600", r"\(H, W\)")),
+        Case("a time outside the schedule", _call(_predictor_call(
+            times=[dt.datetime(2020, 5, 3, 3, 0)] * 2)), ValueError,
+            (r"times", r"08:00\.\.18:00", r"03:00")),
+        # Item 3: the synthetic generator overwrites nothing it did not write.
+        Case("the synthetic generator over a download", _synthetic_over_a_download, 2,
+             (r"not written by the synthetic generator", r"intrinsics\.txt", r"--overwrite")),
+        Case("the synthetic generator over another seed", _synthetic_other_seed, 2,
+             (r"seed 0 \(asked 1\)", r"mix two worlds", r"--overwrite")),
+        # Item 5: mixed sizes in one static viewpoint.
+        Case("a webcam scene of two image sizes", _mixed_sizes, 2,
+             (r"2 sizes", r"1 at 48x36 \(20100601_083000\.png\)")),
+        # Item 6: no model of another epoch count, no training on NaN.
+        Case("a trained workdir asked for another epoch count", _another_epoch_count,
+             train.WorkdirMismatchError, (r"num_epochs=1, asked num_epochs=2", r"--workdir")),
+        Case("a NaN learning rate", _nan_learning_rate, train.NonFiniteLossError,
+             (r"training loss is nan at epoch 1, step 2", r"learning_rate=nan",
+              r"no checkpoint")),
+        # Item 7: no input dropped in silence.
+        Case("a NaN in a CMU pose line", _cmu_nan_pose, 2,
+             (r"ground-truth-database-images-slice7\.txt:2:", r"NaN")),
+        Case("a test scene whose names are no times", _lost_test_scene, 2,
+             (r"split 'test' \(c\) lost all its viewpoints",)),
+        Case("--folds above the training viewpoints", _call(_folds(99)), ValueError,
+             (r"num_folds=99", r"only 2 viewpoints \(a, b\)")),
+        Case("an empty folder as a CMU download", _empty_cmu_folder, LayoutError,
+             (r"no intrinsics\.txt", r"slice\{N\}/database")),
+    ]
+
+
+CASES = _cases()
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_bad_input(case: Case, tmp_path, capsys):
+    run, inputs = case.make(tmp_path)
+    before = {str(p): _checksums(p) for p in inputs}
+    capsys.readouterr()
+    if isinstance(case.expect, int):
+        assert run() == case.expect
+        message = capsys.readouterr().err
+    else:
+        with pytest.raises(case.expect) as err:
+            run()
+        message = str(err.value)
+    for pattern in case.names:
+        assert re.search(pattern, message), f"{case.name}: {pattern!r} not in:\n{message}"
+    assert {str(p): _checksums(p) for p in inputs} == before, f"{case.name} changed its inputs"
