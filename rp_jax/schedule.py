@@ -38,7 +38,9 @@ __all__ = [
 
 DAY_SECONDS = 86_400
 YEAR_SECONDS = 365 * DAY_SECONDS
-DATA_SPECS_DIR = Path(__file__).resolve().parent.parent / "data_specs"
+# The per-dataset facts: the checkout's top-level data_specs/ (the source of truth), seen
+# from inside the package through the rp_jax/data_specs link, which a wheel copies in.
+DATA_SPECS_DIR = Path(__file__).resolve().parent / "data_specs"
 # Days before the first of each month in a 365-day year.
 _MONTH_START_DAY = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30])
 
