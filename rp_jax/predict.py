@@ -272,11 +272,14 @@ class Predictor:
         if xy.ndim == 2 and xy.shape[1] == 2 and xy.size and np.all(np.isfinite(xy)):
             for axis, name, limit in ((0, "x", w), (1, "y", h)):
                 lo, hi = float(xy[:, axis].min()), float(xy[:, axis].max())
-                if lo < 0 or hi > limit:
+                # The image's extent with pixel centres at 0..W-1 or at 0.5..W-0.5.
+                if lo < -0.5 or hi > limit + 0.5:
                     raise ValueError(
                         f"xy: pixel {name} must be in [0, {limit:g}] for image_size=(W, H)="
                         f"({w:g}, {h:g}), got values in [{lo:g}, {hi:g}]; is image_size "
                         "(W, H) of the image the points come from (not (H, W))?")
+            # As the records were made: x / W and y / H, clipped to [0, 1].
+            return np.clip(xy / np.array([w, h], np.float32), 0.0, 1.0)
         return xy / np.array([w, h], np.float32)
 
     def _time_features(self, times, n: int) -> np.ndarray:

@@ -199,6 +199,6 @@ def test_times_between_slots_and_pixel_edges_accepted(workdir):
     p, _, _ = _inputs()
     t = [dt.datetime(2020, 5, 3, 8, 15), dt.datetime(2020, 5, 3, 18, 5),
          dt.datetime(2020, 5, 3, 7, 55)]
-    xy = np.array([[0, 0], [640, 480], [320.5, 10]], np.float32)
+    xy = np.array([[-0.5, 0], [640, 480.5], [320.5, 10]], np.float32)  # the image's extent
     out = rp(p, xy, t, image_size=(640, 480))
     assert out.shape == (3, 21) and np.all(np.isfinite(out))
