@@ -11,13 +11,13 @@ matplotlib's object API with the Agg canvas, so it never touches pyplot's global
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+
+from rp_jax import files
 
 __all__ = [
     "experiment_figures",
@@ -42,16 +42,8 @@ def _new_figure(width: float, height: float):
 def save_figure(fig, out: str | Path) -> Path:
     """Write ``fig`` as a PNG at ``out`` atomically; returns the path."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
-    os.close(fd)
-    try:
+    with files.replacing(out) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
-        os.replace(tmp, out)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return out
 
 

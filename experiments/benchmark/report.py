@@ -15,13 +15,9 @@ import os
 from pathlib import Path
 from typing import Any
 
+from rp_jax import files
+
 __all__ = ["markdown", "read_results", "write_reports"]
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def read_results(out_dir: str | os.PathLike) -> dict[str, Any]:
@@ -353,6 +349,6 @@ def write_reports(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     js, md = out / "benchmark.json", out / "benchmark.md"
-    _atomic_write(js, json.dumps(results, indent=2, sort_keys=False))
-    _atomic_write(md, markdown(results, notes))
+    files.write_text(js, json.dumps(results, indent=2, sort_keys=False))
+    files.write_text(md, markdown(results, notes))
     return js, md

@@ -52,7 +52,7 @@ from tqdm.auto import tqdm
 
 from experiments.map_summarization import report
 from experiments.map_summarization.train import train_cmu_predictor, train_predictor
-from rp_jax import experiment, plots
+from rp_jax import experiment, files, plots
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize import (
     LocalizationMap,
@@ -784,7 +784,5 @@ def run(
     }
     experiment.write_json(workdir / "metrics.json", metrics)
     text = report.markdown(metrics, config, METHOD_LABELS)
-    tmp = workdir / ".report.md.tmp"
-    tmp.write_text(text)
-    os.replace(tmp, workdir / "report.md")
+    files.write_text(workdir / "report.md", text)
     return metrics

@@ -12,12 +12,13 @@ name -> vector (NetVLAD or any other), read by :func:`load_global_descriptors`.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+from rp_jax import files
 
 __all__ = ["GlobalIndex", "load_global_descriptors", "save_global_descriptors"]
 
@@ -87,13 +88,6 @@ def load_global_descriptors(path: str | os.PathLike) -> dict[str, np.ndarray]:
 def save_global_descriptors(path: str | os.PathLike, descriptors: Mapping[str, np.ndarray]) -> Path:
     """Writes global descriptors to ``.npz`` atomically (image name -> vector)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
-    os.close(fd)
-    try:
-        np.savez(tmp, **{k: np.asarray(v) for k, v in descriptors.items()})
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with files.replacing(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **{k: np.asarray(v) for k, v in descriptors.items()})
     return path

@@ -8,12 +8,12 @@ Extended CMU Seasons expects. Unlocalized queries are simply absent from the fil
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from rp_jax import files
 from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
 
 __all__ = [
@@ -48,15 +48,7 @@ def write_submission(
         q = rotation_to_quaternion(pose[0])
         t = np.asarray(pose[1], dtype=np.float64).reshape(3)
         lines.append(" ".join([name] + [repr(float(v)) for v in (*q, *t)]))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write("\n".join(lines) + ("\n" if lines else ""))
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+    return files.write_text(path, "\n".join(lines) + ("\n" if lines else ""))
 
 
 def read_submission(path: str | os.PathLike) -> dict[str, tuple[np.ndarray, np.ndarray]]:

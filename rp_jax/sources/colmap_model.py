@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
+from rp_jax import files
+
 __all__ = [
     "MapPoints",
     "COLMAP_TO_OPENCV_PX",
@@ -213,17 +215,10 @@ def write_model(rec: pycolmap.Reconstruction, path: str | os.PathLike, binary: b
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
         (rec.write_binary if binary else rec.write_text)(str(tmp))
-        if path.exists():
-            old = path.with_name(f".{path.name}.old.{os.getpid()}")
-            path.rename(old)
-            tmp.rename(path)
-            shutil.rmtree(old)
-        else:
-            tmp.rename(path)
+        return files.publish_dir(tmp, path)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp)
-    return path
 
 
 def camera_matrix(camera: pycolmap.Camera) -> np.ndarray:

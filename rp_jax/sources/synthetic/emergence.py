@@ -29,15 +29,13 @@ import argparse
 import dataclasses
 import datetime as dt
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
-from rp_jax import categories
+from rp_jax import categories, files
 from rp_jax.sources.synthetic.conditions import weather_of_day
 from rp_jax.sources.synthetic.render import View, look_at, render
 from rp_jax.sources.synthetic.scene import Scene, build_scene
@@ -615,24 +613,12 @@ def plot(effects: EmergentEffects, frames: dict, path: Path) -> Path:
     )
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".png", dir=path.parent)
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=80)
-        os.replace(tmp, path)
+        with files.replacing(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=80)
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.remove(tmp)
     return path
-
-
-def _write_json(path: Path, data: dict) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=path.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(data, fh, indent=1)
-    os.replace(tmp, path)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -648,7 +634,7 @@ def main(argv: list[str] | None = None) -> int:
     effects, frames = measure(setup)
     args.out_dir.mkdir(parents=True, exist_ok=True)
     png = plot(effects, frames, args.out_dir / "emergent_effects.png")
-    _write_json(args.out_dir / "emergent_effects.json", effects.to_json())
+    files.write_json(args.out_dir / "emergent_effects.json", effects.to_json())
     print(
         json.dumps(
             {k: v for k, v in effects.to_json().items() if k not in ("dt_hours", "dt_rates")},

@@ -27,7 +27,6 @@ import datetime as dt
 import io
 import json
 import math
-import os
 import re
 import zoneinfo
 from collections.abc import Iterable, Mapping, Sequence
@@ -36,6 +35,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rp_jax import files
 from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
 from rp_jax.sources.capture import Camera
 from rp_jax.sources.colmap_model import colmap_xy
@@ -87,28 +87,9 @@ __all__ = [
 # --------------------------------------------------------------------------- atomic writes
 
 
-def _temp_name(path: Path) -> Path:
-    # A hidden name with a suffix no reader globs for (*.jpg, *.png, *.txt).
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
-
-
 def write_bytes_atomic(path: Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file and a rename.
-
-    Args:
-      path: the final file; its folder is created if needed.
-      data: the bytes to write.
-
-    Returns:
-      ``path``.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_name(path)
-    with open(tmp, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
-    return path
+    """Write ``data`` to ``path`` atomically (``rp_jax.files.write_bytes``)."""
+    return files.write_bytes(path, data)
 
 
 def write_text_atomic(path: Path, text: str) -> Path:
@@ -254,8 +235,12 @@ def write_matlab_v73(path: Path, scalars: Mapping[str, float]) -> Path:
     import h5py  # only the writers of .mat files need it
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_name(path)
+    with files.replacing(path) as tmp:
+        _write_matlab_v73(tmp, scalars, h5py)
+    return path
+
+
+def _write_matlab_v73(tmp: Path, scalars: Mapping[str, float], h5py) -> None:
     with h5py.File(tmp, "w", userblock_size=512, track_order=True) as f:
         for key, value in scalars.items():
             ds = f.create_dataset(
@@ -264,8 +249,6 @@ def write_matlab_v73(path: Path, scalars: Mapping[str, float]) -> Path:
             ds.attrs["MATLAB_class"] = np.bytes_("double")
     with open(tmp, "r+b") as f:
         f.write(MATLAB_V73_HEADER.ljust(512, b"\x00"))
-    os.replace(tmp, path)
-    return path
 
 
 def write_webcam_sun_angles(image_path: Path, zenith_deg: float, azimuth_deg: float) -> Path:

@@ -1,0 +1,108 @@
+"""Files written whole or not at all, readable by others: the one home for atomic writes.
+
+Every file the project writes (records' side files, layouts, checkpoints' companions,
+reports, figures, models) goes through a temporary name in the same folder and an
+``os.replace`` onto the final name, so a killed run leaves the old file or the new one,
+never half of one. The temporary file is created private (``tempfile`` makes it 0600);
+before the rename it gets the permissions a plain ``open(path, "w")`` would have given
+(0666 less the umask: 0644 under the usual umask 022), so others can read what the project
+writes. On failure the temporary file is removed and the final name is untouched.
+
+``replacing(path)`` is the general form: it yields a temporary path for any writer that
+wants a file name (``cv2.imwrite``, ``np.savez``, ``savefig``, h5py); ``write_bytes``,
+``write_text`` and ``write_json`` are the common cases. ``publish_dir`` does the same for a
+folder written in full (a COLMAP model).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+__all__ = ["publish_dir", "replacing", "write_bytes", "write_json", "write_text"]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _readable(path: Path, *, directory: bool = False) -> None:
+    """The permissions of a plain ``open``/``mkdir``: 0666 / 0777 less the umask."""
+    os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
+
+
+@contextlib.contextmanager
+def replacing(path: str | os.PathLike, *, suffix: str = ".tmp") -> Iterator[Path]:
+    """Yields a temporary path beside ``path``; on success it becomes ``path``.
+
+    Args:
+      path: the final file; its folder is created if needed.
+      suffix: the temporary name's suffix. The default is one no reader globs for (a
+        run killed mid-write leaves a hidden ``.NAME.XXXX.tmp`` that no ``*.jpg`` picks
+        up); writers that choose the format by extension are given it explicitly instead
+        (``savefig(tmp, format="png")``, ``cv2.imencode`` + ``write_bytes``).
+
+    Writers that append their own extension (``np.savez`` adds ``.npz``) are given an
+    open file object instead of the name.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        _readable(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Writes ``data`` to ``path`` atomically; returns ``path``."""
+    with replacing(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Writes ``text`` (UTF-8) to ``path`` atomically; returns ``path``."""
+    return write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path: str | os.PathLike, data: Any, *, indent: int | None = 2, **kwargs) -> Path:
+    """Writes ``data`` as JSON (a final newline) to ``path`` atomically; returns ``path``."""
+    return write_text(path, json.dumps(data, indent=indent, **kwargs) + "\n")
+
+
+def publish_dir(tmp_dir: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """Moves a fully written folder ``tmp_dir`` onto ``path`` (replacing an older one).
+
+    ``tmp_dir`` must be on the same file system (make it beside ``path``). The folder and
+    its files get plain permissions first. An older ``path`` is moved aside just before the
+    rename and removed after it, so ``path`` is never half-written while it exists.
+    """
+    tmp_dir, path = Path(tmp_dir), Path(path)
+    _readable(tmp_dir, directory=True)
+    for root, dirs, files in os.walk(tmp_dir):
+        for d in dirs:
+            _readable(Path(root) / d, directory=True)
+        for f in files:
+            _readable(Path(root) / f)
+    old = None
+    if path.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
+        os.replace(path, old / path.name)
+    os.replace(tmp_dir, path)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return path
