@@ -22,7 +22,7 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax import evaluation, experiment, predict, time_encoding, train
+from rp_jax import evaluation, experiment, files, predict, time_encoding, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
@@ -163,9 +163,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
     result = {"folds": folds, "summary": summarize(list(folds.values())),
               "config": config.to_dict()}
     experiment.write_json(path, result)
-    tmp = workdir / ".crossval.md.tmp"
-    tmp.write_text(markdown(result))
-    tmp.replace(workdir / "crossval.md")
+    files.write_text(workdir / "crossval.md", markdown(result))
     return result
 
 

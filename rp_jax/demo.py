@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import platform, predict, time_encoding, train
+from rp_jax import files, platform, predict, time_encoding, train
 from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default
 from rp_jax.datasets import input_pipeline, learnable_task
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{kind:9s} slot {val_rec['slot'][k]:2d}  true {val_rec['label'][k][::2]}")
         print(f"{'':9s}          pred {pred[k][::2]}")
     print(json.dumps(result, indent=2))
-    (Path(args.workdir) / "demo_result.json").write_text(json.dumps(result, indent=2))
+    files.write_json(Path(args.workdir) / "demo_result.json", result)
     return 0
 
 

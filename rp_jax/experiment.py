@@ -22,7 +22,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
-from rp_jax import categories, evaluation
+from rp_jax import categories, evaluation, files
 from rp_jax import schedule as schedule_lib
 
 __all__ = [
@@ -223,7 +223,7 @@ def run(
     metrics["figures"] = [str(Path(f).name) for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
     write_json(workdir / "metrics.json", metrics)
-    (workdir / "report.md").write_text(report_markdown(metrics, config))
+    files.write_text(workdir / "report.md", report_markdown(metrics, config))
     return metrics
 
 
@@ -303,9 +303,8 @@ def _finite(obj):
 
 
 def write_json(path: Path, payload) -> None:
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(_finite(payload), indent=2, allow_nan=False))
-    os.replace(tmp, path)
+    """``payload`` as strict JSON (NaN/inf as null, NumPy scalars as numbers), atomically."""
+    files.write_json(path, _finite(payload), allow_nan=False)
 
 
 def report_markdown(metrics: dict, config) -> str:

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rp_jax import files
 from rp_jax.commands import InputError, datetime_flag, load_predictor, run_command
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
@@ -84,10 +85,13 @@ class ImageKeypoints:
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the arrays (and times as ISO text) to an ``.npz`` (temporary file, rename)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp.npz")
+        with files.replacing(path) as tmp, open(tmp, "wb") as f:
+            self._savez(f)
+        return path
+
+    def _savez(self, f) -> None:
         np.savez(
-            tmp,
+            f,
             xy=self.xy,
             scale=self.scale,
             score=self.score,
@@ -97,8 +101,6 @@ class ImageKeypoints:
             at=np.asarray(self.at.isoformat()),
             image_size=np.asarray(self.image_size, np.int64),
         )
-        os.replace(tmp, path)
-        return path
 
 
 def load_image(image: np.ndarray | str | os.PathLike) -> np.ndarray:

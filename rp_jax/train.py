@@ -37,7 +37,7 @@ from flax.training import train_state
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from rp_jax import checkpoints, losses, time_encoding
+from rp_jax import checkpoints, files, losses, time_encoding
 from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
 from rp_jax.datasets import input_pipeline
@@ -237,9 +237,7 @@ def write_run_files(workdir: Path, config, schedule: schedule_lib.TimeSchedule) 
     """``config.json`` and ``schedule.json``: what ``rp_jax.predict.load`` rebuilds a model from."""
     workdir.mkdir(parents=True, exist_ok=True)
     for name, payload in (("config.json", config.to_dict()), ("schedule.json", schedule.to_dict())):
-        tmp = workdir / f".{name}.tmp"
-        tmp.write_text(json.dumps(payload, indent=2, default=list))
-        os.replace(tmp, workdir / name)
+        files.write_json(workdir / name, payload, default=list)
 
 
 def _check_same_config(workdir: Path, config, *, trained: bool) -> None:

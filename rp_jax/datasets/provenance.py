@@ -21,6 +21,7 @@ import logging
 import os
 from pathlib import Path
 
+from rp_jax import files
 from rp_jax.sources.layout import LayoutError
 
 __all__ = [
@@ -135,10 +136,7 @@ def _check(builder, manual_dir: Path) -> None:
 
 def _record(builder, layout: dict) -> None:
     payload = {"layout": layout, "labelling": labelling_fingerprint(builder)}
-    path = _path(builder)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(payload, indent=2, sort_keys=True, default=str) + "\n")
-    os.replace(tmp, path)
+    files.write_json(_path(builder), payload, sort_keys=True, default=str)
 
 
 def _manual_dir(builder, manual_dir) -> Path:

@@ -41,15 +41,14 @@ import hashlib
 import json
 import logging
 import multiprocessing as mp
-import os
 import re
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from rp_jax import files
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.groundtruth import matching, patches, sfm, triangulation, verification
@@ -108,29 +107,8 @@ def _safe_name(name: str) -> str:
 
 
 def _atomic_savez(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with files.replacing(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)
 
 
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
@@ -708,7 +686,7 @@ def label_viewpoint(
             "config": config.tag(num_timestamps),
         }
         _atomic_savez(out_path, records)
-        _atomic_write_text(out_path.with_suffix(".json"), json.dumps(meta, indent=1))
+        files.write_text(out_path.with_suffix(".json"), json.dumps(meta, indent=1))
     return attach_patches(records, readable, load_image) if with_patches else records
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
+from rp_jax import files
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize.pipeline import LocalizationMap
 from rp_jax.localize.retrieval import GlobalIndex
@@ -138,15 +139,13 @@ class MapDescription:
     def save(self, path: str | os.PathLike) -> Path:
         """Writes an ``.npz`` (no pickles; temporary file, then rename)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp.npz")
         meta = {"local_source": self.local_source, "global_source": self.global_source,
                 "vlad_input": self.vlad_input}
-        np.savez(tmp, point3D_ids=self.point3D_ids, descriptors=self.descriptors,
+        with files.replacing(path) as tmp, open(tmp, "wb") as f:
+            np.savez(f, point3D_ids=self.point3D_ids, descriptors=self.descriptors,
                  image_names=np.asarray(self.image_names, dtype=str),
                  global_descriptors=self.global_descriptors, vocabulary=self.vocabulary,
-                 meta=np.asarray(json.dumps(meta)))
-        os.replace(tmp, path)
+                     meta=np.asarray(json.dumps(meta)))
         return path
 
     @classmethod

@@ -18,12 +18,12 @@ database images (``images``) or an hloc ``features.h5`` (``features``).
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
+from rp_jax import files
 from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS, localization_recall, pose_error
 from rp_jax.localize.map_description import (
     MAP_DESCRIPTION,
@@ -182,9 +182,6 @@ def localize_folder(
         recall = localization_recall(errors, DEFAULT_THRESHOLDS)
         result["accuracy"] = {threshold_key(th): round(v, 2)
                               for th, v in zip(DEFAULT_THRESHOLDS, recall)}
-    out_dir.mkdir(parents=True, exist_ok=True)
-    tmp = out_dir / f".{RESULTS}.tmp"
-    tmp.write_text(json.dumps(result, indent=2))
-    os.replace(tmp, out_dir / RESULTS)
+    files.write_json(out_dir / RESULTS, result)
     result["submission"] = submission
     return result

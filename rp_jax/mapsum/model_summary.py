@@ -26,7 +26,6 @@ distortion (as ``rp_jax.mapsum.observations`` does for the experiment's map).
 from __future__ import annotations
 
 import datetime as dt
-import json
 import os
 import re
 from collections.abc import Callable
@@ -36,6 +35,7 @@ import cv2
 import numpy as np
 from tqdm.auto import tqdm
 
+from rp_jax import files
 from rp_jax.groundtruth.patches import extract_patches
 from rp_jax.localize.map_description import (
     MAP_DESCRIPTION,
@@ -154,9 +154,7 @@ def _write_map_folder(out: Path, rec, map_points: MapPoints, keep: np.ndarray, d
                                         "median": float(np.median(per_image))
                                         if len(per_image) else 0.0},
               "folder": str(out)}
-    tmp = out / f".{SUMMARY_JSON}.tmp"
-    tmp.write_text(json.dumps(record, indent=2, default=str))
-    os.replace(tmp, out / SUMMARY_JSON)
+    files.write_json(out / SUMMARY_JSON, record, default=str)
     return record
 
 
@@ -267,12 +265,10 @@ def summarize_model(
     schedule = predictor.schedule
     score = (None if at is None
              else np.asarray(predict.at_time(curves, schedule, at), np.float64))
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = out / f".{POINT_REPEATABILITY}.tmp.npz"
-    np.savez(tmp, point3D_ids=mp.point3D_ids, curves=curves,
+    with files.replacing(out / POINT_REPEATABILITY) as tmp, open(tmp, "wb") as f:
+        np.savez(f, point3D_ids=mp.point3D_ids, curves=curves,
              schedule_labels=np.asarray(schedule.labels, dtype=str),
-             **({} if score is None else {"score": score, "at": np.asarray(at.isoformat())}))
-    os.replace(tmp, out / POINT_REPEATABILITY)
+                 **({} if score is None else {"score": score, "at": np.asarray(at.isoformat())}))
     base["schedule"] = {"name": schedule.name, "labels": list(schedule.labels)}
     if not all_slots:
         keep = summarize("repeatability", mp, ratio, part, repeatability=score)
@@ -282,7 +278,5 @@ def summarize_model(
         keep = summarize("repeatability", mp, ratio, part, repeatability=curves, timestamp=j)
         records.append(_write_map_folder(out / slot_folder(j, label), rec, mp, keep, description,
                                          {**base, "timestamp": j, "slot": label}))
-    tmp = out / f".{SUMMARY_JSON}.tmp"
-    tmp.write_text(json.dumps({**base, "summaries": [r["folder"] for r in records]}, indent=2))
-    os.replace(tmp, out / SUMMARY_JSON)
+    files.write_json(out / SUMMARY_JSON, {**base, "summaries": [r["folder"] for r in records]})
     return records
