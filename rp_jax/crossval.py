@@ -27,7 +27,7 @@ from rp_jax import schedule as schedule_lib
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
 
-METHODS = ("rp", "per_slot_mean", "slot_conditioned_mean", "descriptor_knn")
+PREDICTORS = ("rp", "per_slot_mean", "slot_conditioned_mean", "descriptor_knn")
 LABELS = {"per_slot_mean": "the per-slot mean",
           "slot_conditioned_mean": "the slot-conditioned mean",
           "descriptor_knn": "the descriptor kNN"}
@@ -107,9 +107,9 @@ def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedul
 def summarize(folds: list[dict]) -> dict:
     """Mean MAE per method over the folds, and how often / by how much RP beats each baseline."""
     out: dict = {"num_folds": len(folds), "mean_mae": {}, "rp_wins": {}, "rp_mae_margin": {}}
-    for name in METHODS:
+    for name in PREDICTORS:
         out["mean_mae"][name] = float(np.mean([f["scores"][name]["mae"] for f in folds]))
-    for name in METHODS[1:]:
+    for name in PREDICTORS[1:]:
         rel = [1.0 - f["scores"]["rp"]["mae"] / f["scores"][name]["mae"] for f in folds]
         out["rp_wins"][name] = int(sum(r > 0 for r in rel))
         out["rp_mae_margin"][name] = {"mean": float(np.mean(rel)), "min": float(np.min(rel)),
@@ -176,16 +176,16 @@ def markdown(result: dict) -> str:
              "valid slots). The test split is not read.", "", head, "|---" * 7 + "|"]
     for f in result["folds"].values():
         s = f["scores"]
-        cells = [f"{s[m]['mae']:.4f}" for m in METHODS]
-        best = int(np.argmin([s[m]["mae"] for m in METHODS]))
+        cells = [f"{s[m]['mae']:.4f}" for m in PREDICTORS]
+        best = int(np.argmin([s[m]["mae"] for m in PREDICTORS]))
         cells[best] = f"**{cells[best]}**"
         lines.append(f"| {', '.join(f['held_out'])} | {f['counts']['held_out']} | "
                      f"{f['ground_truth_mean']:.3f} | " + " | ".join(cells) + " |")
     sm = result["summary"]
-    means = " | ".join(f"{sm['mean_mae'][m]:.4f}" for m in METHODS)
+    means = " | ".join(f"{sm['mean_mae'][m]:.4f}" for m in PREDICTORS)
     lines.append(f"| **mean** | | | {means} |")
     lines.append("")
-    for m in METHODS[1:]:
+    for m in PREDICTORS[1:]:
         g = sm["rp_mae_margin"][m]
         lines.append(f"- RP vs {LABELS[m]}: lower MAE on {sm['rp_wins'][m]} of "
                      f"{sm['num_folds']} folds; relative MAE reduction {100 * g['mean']:+.1f} % on "

@@ -27,7 +27,7 @@ from rp_jax import schedule as schedule_lib
 
 __all__ = [
     "run",
-    "RECORD_KEYS",
+    "EVALUATION_KEYS",
     "split_validation",
     "build_dataset",
     "model_source",
@@ -41,7 +41,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 # What the experiment reads from each record (beyond the model's keys).
-RECORD_KEYS = ("viewpoint", "image_id", "slot", "category", "descriptor", "xy", "image_size")
+EVALUATION_KEYS = ("viewpoint", "image_id", "slot", "category", "descriptor", "xy", "image_size")
 
 
 def split_validation(viewpoints: np.ndarray, fraction: float, seed: int) -> np.ndarray:
@@ -71,7 +71,7 @@ def build_dataset(config, workdir: Path) -> dict:
 
     # Builds unless built; a real dataset built from another download is refused.
     provenance.prepare(builder, config.manual_dir or None)
-    keys = tuple(dict.fromkeys(_model_keys() + RECORD_KEYS))
+    keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
     return {
         split: loading.load_columns(
             config.dataset,

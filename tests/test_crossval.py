@@ -58,7 +58,7 @@ def test_cross_validate_scores_each_held_out_viewpoint_and_resumes(tmp_path, mon
     assert sorted(result["folds"]) == ["fold_scene_0", "fold_scene_1", "fold_scene_2"]
     for fold in result["folds"].values():
         assert fold["counts"] == {"train": 192, "held_out": 96}
-        assert set(fold["scores"]) == set(crossval.METHODS)
+        assert set(fold["scores"]) == set(crossval.PREDICTORS)
         for s in fold["scores"].values():
             assert s["mae"] > 0.0 and s["mse"] > 0.0
         assert len(fold["rp_mae_per_epoch"]) == 2

@@ -9,7 +9,7 @@ K-cover, random and most-observed (``kcover``, ``baselines``), all with the inte
 (``observations``), the oracles (``oracles``) and the paired statistics (``statistics``).
 """
 
-from rp_jax.mapsum.baselines import METHODS, most_observed_keep, random_keep, summarize
+from rp_jax.mapsum.baselines import SUMMARIZERS, most_observed_keep, random_keep, summarize
 from rp_jax.mapsum.kcover import distinctiveness_weights, greedy_kcover, kcover_keep
 from rp_jax.mapsum.partition import (
     grid_partition,
@@ -37,7 +37,7 @@ from rp_jax.sources.colmap_model import (
 )
 
 __all__ = [
-    "METHODS",
+    "SUMMARIZERS",
     "MapPoints",
     "camera_matrix",
     "distinctiveness_weights",

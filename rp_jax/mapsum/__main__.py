@@ -26,7 +26,7 @@ from rp_jax.commands import (
 )
 
 PROG = "python -m rp_jax.mapsum"
-METHODS = ("rp", "kcover", "random", "most_observed")
+METHOD_CHOICES = ("rp", "kcover", "random", "most_observed")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -47,7 +47,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     s.add_argument("--ratio", required=True, type=float, metavar="R",
                    help="pruning ratio: the fraction of each part's points removed, in [0, 1]")
-    s.add_argument("--method", choices=METHODS, default="rp",
+    s.add_argument("--method", choices=METHOD_CHOICES, default="rp",
                    help="rp: most repeatable at --at (the paper's); kcover: Li et al.'s "
                    "minimal scene description; random; most_observed: longest tracks "
                    "(default rp)")

@@ -22,7 +22,7 @@ from rp_jax.mapsum.kcover import kcover_keep
 from rp_jax.mapsum.sampling import prune_by_score, repeatability_keep
 from rp_jax.sources.colmap_model import MapPoints
 
-__all__ = ["METHODS", "most_observed_keep", "random_keep", "summarize"]
+__all__ = ["SUMMARIZERS", "most_observed_keep", "random_keep", "summarize"]
 
 
 def random_keep(
@@ -57,7 +57,7 @@ def most_observed_keep(map_points: MapPoints, ratio: float, parts: np.ndarray | 
     return prune_by_score(map_points.track_length.astype(np.float64), parts, ratio)
 
 
-METHODS: dict[str, Callable[..., np.ndarray]] = {
+SUMMARIZERS: dict[str, Callable[..., np.ndarray]] = {
     "repeatability": repeatability_keep,
     "kcover": kcover_keep,
     "random": random_keep,
@@ -68,9 +68,9 @@ METHODS: dict[str, Callable[..., np.ndarray]] = {
 def summarize(
     method: str, map_points: MapPoints, ratio: float, parts: np.ndarray | None, **kwargs
 ) -> np.ndarray:
-    """Keep-mask of the named method (see ``METHODS``)."""
-    if method not in METHODS:
+    """Keep-mask of the named method (see ``SUMMARIZERS``)."""
+    if method not in SUMMARIZERS:
         raise ValueError(
-            f"unknown summarization method {method!r}; expected one of {list(METHODS)}"
+            f"unknown summarization method {method!r}; expected one of {list(SUMMARIZERS)}"
         )
-    return METHODS[method](map_points, ratio, parts, **kwargs)
+    return SUMMARIZERS[method](map_points, ratio, parts, **kwargs)

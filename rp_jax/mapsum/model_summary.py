@@ -67,7 +67,7 @@ __all__ = [
     "summarize_model",
 ]
 
-# The command's method names -> rp_jax.mapsum.baselines.METHODS.
+# The command's method names -> rp_jax.mapsum.baselines.SUMMARIZERS.
 COMMAND_METHODS = {
     "rp": "repeatability",
     "kcover": "kcover",

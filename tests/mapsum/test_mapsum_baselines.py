@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from rp_jax.mapsum import METHODS, MapPoints, keep_count, most_observed_keep, random_keep, summarize
+from rp_jax.mapsum import (
+    SUMMARIZERS,
+    MapPoints,
+    keep_count,
+    most_observed_keep,
+    random_keep,
+    summarize,
+)
 
 
 def _map(rng, n_points=200, n_images=10):
@@ -19,7 +26,7 @@ def _map(rng, n_points=200, n_images=10):
     )
 
 
-@pytest.mark.parametrize("method", sorted(METHODS))
+@pytest.mark.parametrize("method", sorted(SUMMARIZERS))
 def test_all_methods_keep_the_same_count_per_part(method):
     rng = np.random.default_rng(0)
     mp = _map(rng)
