@@ -98,3 +98,85 @@ def test_localize_does_not_import_mapsum():
         imported = _imported_modules(path)
         offending = sorted(m for m in imported if m.startswith("rp_jax.mapsum"))
         assert not offending, f"{path.relative_to(ROOT)} imports {offending}"
+
+
+# The layers of ARCHITECTURE.md and the README's Layout section, lowest first. A module may
+# import from its own layer and the layers below, never from a higher one; command-line
+# modules (``__main__``) sit on top. Within a layer, two packages must not import each other.
+LAYERS = {
+    "foundations": ("rp_jax", "rp_jax.schedule", "rp_jax.time_encoding", "rp_jax.model",
+                    "rp_jax.losses", "rp_jax.categories", "rp_jax.rotations", "rp_jax.platform",
+                    "rp_jax.files", "rp_jax.sun", "rp_jax.plots"),
+    "data": ("rp_jax.sources",),
+    "labelling": ("rp_jax.groundtruth",),
+    "learning": ("rp_jax.datasets", "rp_jax.checkpoints", "rp_jax.train", "rp_jax.predict",
+                 "rp_jax.evaluation", "rp_jax.shipped"),
+    "applications": ("rp_jax.mapsum", "rp_jax.localize", "rp_jax.keypoints"),
+    "drivers": ("rp_jax.experiment", "rp_jax.configs", "rp_jax.crossval", "rp_jax.demo",
+                "experiments"),
+    "entry points": ("rp_jax.commands",),
+}
+_RANK = {prefix: i for i, (_, prefixes) in enumerate(LAYERS.items()) for prefix in prefixes}
+_TOP = len(LAYERS) - 1
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for base in ("rp_jax", "experiments"):
+        for path in sorted((ROOT / base).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+def _layer(module: str) -> tuple[int, str]:
+    """(rank, package) of a module: the longest listed prefix decides."""
+    if module.rsplit(".", 1)[-1] == "__main__":
+        return _TOP, module
+    best = max((p for p in _RANK if module == p or module.startswith(p + ".")), key=len)
+    return _RANK[best], best
+
+
+def _project_imports(path: Path, module: str, modules: dict[str, Path]) -> set[str]:
+    found = set()
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join(up + ([base] if base else []))
+            names = [f"{base}.{a.name}" for a in node.names] + [base]
+        for name in names:
+            while name and name not in modules:
+                name = name.rpartition(".")[0]
+            if name and name != module:
+                found.add(name)
+    return found
+
+
+def test_every_module_has_a_layer():
+    for module in _modules():
+        assert _layer(module), module
+
+
+def test_imports_point_down_the_layers_and_packages_form_no_cycle():
+    modules = _modules()
+    upward, edges = [], set()
+    for module, path in modules.items():
+        rank, package = _layer(module)
+        for target in _project_imports(path, module, modules):
+            t_rank, t_package = _layer(target)
+            if t_rank > rank:
+                upward.append(f"{module} ({list(LAYERS)[rank]}) imports {target} "
+                              f"({list(LAYERS)[t_rank]})")
+            elif t_rank == rank and t_package != package and rank != _TOP:
+                edges.add((package, t_package))
+    assert not upward, "\n".join(sorted(upward))
+    cycles = sorted(f"{a} <-> {b}" for a, b in edges if (b, a) in edges and a < b)
+    assert not cycles, cycles

@@ -12,6 +12,7 @@ from PIL import Image
 
 from rp_jax import keypoints, predict
 from rp_jax.groundtruth.patches import extract_patches
+from rp_jax.keypoints import __main__ as keypoints_cli
 from tests._own_data import make_predictor, render, texture
 
 CAPTURED = dt.datetime(2024, 6, 1, 9, 30)
@@ -78,7 +79,7 @@ def test_command_writes_npz_and_overlay(model, image, tmp_path, capsys):
     a = _write(tmp_path / "a.jpg", image)
     b = _write(tmp_path / "b.jpg", image[::-1].copy(), exif_time="2024:06:02 17:15:00")
     out = tmp_path / "out"
-    rc = keypoints.main([str(a), str(b), "--model", str(model), "--at", "2024-12-01 17:00",
+    rc = keypoints_cli.main([str(a), str(b), "--model", str(model), "--at", "2024-12-01 17:00",
                          "--captured", "2024-06-01 09:30", "--out", str(out),
                          "--max-keypoints", "150"])
     assert rc == 0
@@ -94,9 +95,9 @@ def test_command_writes_npz_and_overlay(model, image, tmp_path, capsys):
     png = cv2.imread(str(out / "a_repeatability.png"))
     assert png is not None and png.shape[0] > 200 and png.std() > 20  # written, not blank
     # Without --captured the time comes from EXIF (b.jpg); a.jpg has none: a one-line error.
-    rc = keypoints.main([str(b), "--model", str(model), "--out", str(out), "--no-overlay"])
+    rc = keypoints_cli.main([str(b), "--model", str(model), "--out", str(out), "--no-overlay"])
     assert rc == 0 and "captured 2024-06-02 17:15" in capsys.readouterr().out
-    rc = keypoints.main([str(a), "--model", str(model), "--out", str(out)])
+    rc = keypoints_cli.main([str(a), "--model", str(model), "--out", str(out)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1
     assert "a.jpg: no capture time" in err and "give --captured" in err
@@ -111,7 +112,7 @@ def test_command_reads_hloc_keypoints(model, image, tmp_path, capsys):
         g.create_dataset("descriptors", data=np.zeros((256, 3), np.float16))
         g.create_dataset("scores", data=np.ones(3, np.float16))
         g.create_dataset("image_size", data=np.array([320, 240]))
-    rc = keypoints.main([str(a), "--model", str(model), "--captured", "2024-06-01 09:30",
+    rc = keypoints_cli.main([str(a), "--model", str(model), "--captured", "2024-06-01 09:30",
                          "--features", str(h5), "--out", str(tmp_path / "o"), "--no-overlay"])
     assert rc == 0, capsys.readouterr().err
     with np.load(tmp_path / "o" / "a.npz") as z:
@@ -127,16 +128,17 @@ def test_bad_input_is_one_line_exit_2(model, image, tmp_path, capsys):
         ([str(a), "--model", str(model), "--features", str(tmp_path / "f.h5")], "f.h5"),
     ]
     for argv, expected in cases:
-        rc = keypoints.main([*argv, "--captured", "2024-06-01 09:30", "--out", str(tmp_path / "o")])
+        out = str(tmp_path / "o")
+        rc = keypoints_cli.main([*argv, "--captured", "2024-06-01 09:30", "--out", out])
         err = capsys.readouterr().err
         assert rc == 2 and err.count("\n") == 1 and expected in err, (argv, err)
     with pytest.raises(SystemExit) as exc:  # argparse: a bad time is exit 2 too
-        keypoints.main([str(a), "--model", str(model), "--captured", "noon", "--out", "o"])
+        keypoints_cli.main([str(a), "--model", str(model), "--captured", "noon", "--out", "o"])
     assert exc.value.code == 2 and "unreadable time 'noon'" in capsys.readouterr().err
 
 
 def test_help_text_on_every_flag():
-    assert all(a.help for a in keypoints._parser()._actions)
+    assert all(a.help for a in keypoints_cli._parser()._actions)
     proc = subprocess.run([sys.executable, "-m", "rp_jax.keypoints", "--help"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "--captured" in proc.stdout and "EXIF" in proc.stdout

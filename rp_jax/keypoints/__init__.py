@@ -31,27 +31,20 @@ dataset's convention (``rp_jax.sources.capture_times``), else a one-line error.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import datetime as dt
 import os
-import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from rp_jax import files
-from rp_jax.commands import InputError, datetime_flag, load_predictor, run_command
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
-from rp_jax.sources import hloc
-from rp_jax.sources.capture_times import CaptureTimes
 from rp_jax.sources.images import read_rgb
 
-__all__ = ["ImageKeypoints", "image_keypoints", "load_image", "main", "run", "write_overlay"]
+__all__ = ["ImageKeypoints", "image_keypoints", "load_image", "write_overlay"]
 
-PROG = "python -m rp_jax.keypoints"
 DEFAULT_MAX_KEYPOINTS = 1000
 
 
@@ -214,145 +207,3 @@ def write_overlay(
     ax.set_title(title or f"{len(kp)} keypoints, captured {kp.captured:%Y-%m-%d %H:%M}",
                  fontsize=10)
     return save_figure(fig, out)
-
-
-def _output_stems(paths: Sequence[Path]) -> list[str]:
-    stems = [p.stem for p in paths]
-    seen: dict[str, Path] = {}
-    for p, s in zip(paths, stems):
-        if s in seen:
-            raise InputError(f"{seen[s]} and {p} would both write {s}.npz: give them separate "
-                             "runs or different --out folders")
-        seen[s] = p
-    return stems
-
-
-def run(
-    images: Sequence[str | os.PathLike],
-    model: str | os.PathLike,
-    out: str | os.PathLike,
-    *,
-    captured: dt.datetime | None = None,
-    at: dt.datetime | None = None,
-    features: str | os.PathLike | None = None,
-    max_keypoints: int = DEFAULT_MAX_KEYPOINTS,
-    overlay: bool = True,
-    predictor=None,
-) -> list[dict]:
-    """The command's work: every image's ``.npz`` (and overlay PNG) in ``out``.
-
-    Args:
-      images: image files.
-      model: the predictor's trained workdir (ignored when ``predictor`` is given).
-      out: output folder (created).
-      captured: capture time of every image; None reads each one's EXIF or file name.
-      at: query time; None: each image's capture time.
-      features: an hloc ``features.h5`` holding the images' keypoints (looked up by name);
-        None detects SIFT.
-      max_keypoints: SIFT keypoints per image.
-      overlay: also write the PNGs.
-      predictor: an already loaded ``Predictor``.
-
-    Returns:
-      One dict per image: image, npz, png, keypoints, captured, at, mean score.
-
-    Raises:
-      InputError / FileNotFoundError / NoCaptureTimeError: a missing image or model, an
-        image without a capture time, an image missing from ``features``.
-    """
-    paths = [Path(p) for p in images]
-    if not paths:
-        raise InputError("no IMAGE given")
-    for p in paths:
-        if not p.is_file():
-            raise InputError(f"{p}: no such image file")
-    stems = _output_stems(paths)
-    times = CaptureTimes(captured, hint="give --captured TIME")
-    whens = [times(p) for p in paths]  # every capture time is known before any work
-    names = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
-    predictor = predictor if predictor is not None else load_predictor(model)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    results = []
-    for path, stem, when in zip(paths, stems, whens):
-        rgb = load_image(path)
-        given = scales = None
-        if features is not None:
-            key = names.find(path.as_posix())
-            if key is None:
-                raise InputError(f"--features {features}: no keypoints for image {path}")
-            f = hloc.read_local_features(features, key)
-            if f.image_size is not None and f.image_size != (rgb.shape[1], rgb.shape[0]):
-                raise InputError(f"--features {features}: image {key!r} is {f.image_size[0]}x"
-                                 f"{f.image_size[1]} there but {path} is {rgb.shape[1]}x"
-                                 f"{rgb.shape[0]}")
-            given, scales = f.keypoints, f.scales
-        try:
-            kp = image_keypoints(predictor, rgb, when, at=at, keypoints=given, scales=scales,
-                                 max_keypoints=max_keypoints)
-        except ValueError as err:
-            raise InputError(f"{path}: {err}") from err
-        npz = kp.save(out / f"{stem}.npz")
-        png = write_overlay(rgb, kp, out / f"{stem}_repeatability.png",
-                            title=f"{path.name}: {len(kp)} keypoints, captured "
-                            f"{kp.captured:%Y-%m-%d %H:%M}") if overlay else None
-        results.append({
-            "image": str(path), "npz": str(npz), "png": None if png is None else str(png),
-            "keypoints": len(kp), "captured": kp.captured, "at": kp.at,
-            "mean_score": float(kp.score.mean()) if len(kp) else float("nan"),
-        })
-    return results
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog=PROG,
-        description="Keypoints of your images, their predicted repeatability curves (one "
-        "value per timestamp of the model's schedule) and their score at a query time. "
-        "Writes DIR/<stem>.npz and DIR/<stem>_repeatability.png per image.",
-    )
-    p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (JPEG, PNG, ...)")
-    p.add_argument("--model", required=True, metavar="MODEL",
-                   help="trained predictor: a workdir with config.json, schedule.json and "
-                   "checkpoints/ (python -m experiments.webcam_clipart writes one)")
-    p.add_argument("--captured", type=datetime_flag, metavar="TIME",
-                   help='capture time of every IMAGE on its own wall clock, e.g. "2024-06-01 '
-                   '09:30"; default: each image\'s EXIF DateTimeOriginal, else its file name '
-                   "(Extended CMU Seasons, RobotCar or YYYYMMDD_HHMMSS conventions)")
-    p.add_argument("--at", type=datetime_flag, metavar="TIME",
-                   help="query time the score (and the overlay colour) is read at; default: "
-                   "the capture time")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
-    p.add_argument("--features", metavar="FILE",
-                   help="hloc features.h5 whose keypoints to use instead of detecting SIFT "
-                   "(images looked up by name)")
-    p.add_argument("--max-keypoints", type=int, default=DEFAULT_MAX_KEYPOINTS, metavar="N",
-                   help=f"SIFT keeps the N strongest keypoints (default {DEFAULT_MAX_KEYPOINTS})")
-    p.add_argument("--no-overlay", action="store_true", help="write the .npz files only")
-    return p
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Parse the flags, run, print one line per image."""
-    args = _parser().parse_args(argv)
-    from rp_jax import platform
-
-    platform.configure_cpu()
-
-    def body() -> int:
-        results = run(args.images, args.model, args.out, captured=args.captured, at=args.at,
-                      features=args.features, max_keypoints=args.max_keypoints,
-                      overlay=not args.no_overlay)
-        for r in results:
-            png = f" and {Path(r['png']).name}" if r["png"] else ""
-            captured, at = (f"{r[k]:%Y-%m-%d %H:%M}" for k in ("captured", "at"))
-            print(f"{r['image']}: {r['keypoints']} keypoints, captured {captured}, mean "
-                  f"repeatability {r['mean_score']:.3f} at {at} -> {Path(r['npz']).name}{png}")
-        print(f"wrote {len(results)} image(s) to {args.out}")
-        return 0
-
-    return run_command(PROG, body)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
