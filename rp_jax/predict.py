@@ -331,19 +331,29 @@ def _in_schedule(schedule: schedule_lib.TimeSchedule, when: dt.datetime) -> bool
 
 def load(workdir: str | os.PathLike, *, step: int | None = None,
          batch_size: int = 512) -> Predictor:
-    """Load a trained workdir (``config.json``, ``schedule.json``, orbax checkpoints).
+    """Load a trained workdir (``config.json``, ``schedule.json``, orbax checkpoints), or a
+    model shipped with the package by its name (``rp_jax.shipped``: e.g.
+    ``"webcam_clipart-synthetic"``; trained on the synthetic world).
 
     Raises:
       ValueError: the workdir has no config, no checkpoint, or a checkpoint that does not fit
         its config.
     """
+    if not Path(workdir).exists():
+        from rp_jax import shipped
+
+        if str(workdir) in shipped.names():
+            return _load_shipped(str(workdir), batch_size)
     workdir = Path(workdir).absolute()
     cfg_path, sched_path = workdir / "config.json", workdir / "schedule.json"
     ckpt_dir = workdir / checkpoints.CHECKPOINTS_DIR
     for p in (cfg_path, sched_path):
         if not p.exists():
+            from rp_jax import shipped
+
             raise ValueError(f"{workdir} is not a trained workdir: {p.name} is missing "
-                             "(expected config.json, schedule.json and checkpoints/)")
+                             "(expected config.json, schedule.json and checkpoints/), nor "
+                             f"the name of a shipped model ({', '.join(shipped.names())})")
     config = ml_collections.ConfigDict(json.loads(cfg_path.read_text()))
     schedule = schedule_lib.TimeSchedule.from_dict(json.loads(sched_path.read_text()))
     if (workdir / checkpoints.BEST_DIR).exists() and step is None:
@@ -364,6 +374,21 @@ def load(workdir: str | os.PathLike, *, step: int | None = None,
         ) from e
     manager.close()
     return Predictor(restored, config, schedule, batch_size)
+
+
+def _load_shipped(name: str, batch_size: int) -> Predictor:
+    """A model shipped in the package (``rp_jax.shipped``), checked against its config."""
+    from rp_jax import shipped
+
+    config_dict, schedule_dict, params = shipped.read(name)
+    config = ml_collections.ConfigDict(config_dict)
+    schedule = schedule_lib.TimeSchedule.from_dict(schedule_dict)
+    want = jax.tree.map(lambda a: (tuple(a.shape), str(a.dtype)),
+                        _abstract_params(config, schedule.num_timestamps))
+    got = jax.tree.map(lambda a: (tuple(a.shape), str(a.dtype)), params)
+    if got != want:
+        raise ValueError(f"shipped model {name}: params.npz does not fit its config.json")
+    return Predictor(params, config, schedule, batch_size)
 
 
 def _abstract_params(config, T: int):

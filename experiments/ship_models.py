@@ -1,0 +1,106 @@
+"""``python -m experiments.ship_models``: put a default run's trained model into the package.
+
+The maintainers' step after a default experiment (``rp_jax.shipped`` says what a shipped
+model holds)::
+
+    python -m experiments.ship_models RUN_WORKDIR NAME --dataset D --config C --split S \\
+        --about ABOUT.json
+
+writes ``rp_jax/models/NAME/``: the run's config and schedule, its parameters, the first
+``rp_jax.shipped.SAMPLE_SIZE`` records of the split with the predictions made now, and
+``model.json`` (ABOUT.json's ``what``, ``command``, ``figures``, ``good_for``, ``not_for``,
+plus the sample's MAE). ``python -m experiments.ship_models --list`` lists them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from rp_jax import files, shipped
+
+__all__ = ["export", "main", "sample_mae", "sample_predictions"]
+
+ABOUT_KEYS = ("what", "command", "figures", "good_for", "not_for")
+
+
+def sample_predictions(predictor, sample) -> np.ndarray:
+    """[N, T] predictions of ``predictor`` on a ``sample.npz``'s inputs."""
+    from rp_jax import time_encoding
+
+    cfg = predictor.config
+    times = np.asarray(time_encoding.encode(
+        sample["hour"], sample["minute"], sample["day"], sample["month"],
+        fields=cfg.time_fields, encoding=cfg.time_encoding))
+    return np.asarray(predictor(sample["patch"], sample["xy_normalized"], times))
+
+
+def sample_mae(pred: np.ndarray, sample) -> float:
+    """Mean absolute error over the sample's labelled slots."""
+    mask = np.asarray(sample["label_mask"]).astype(bool)
+    return float(np.abs(pred - sample["label"])[mask].mean())
+
+
+def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: str,
+           split: str, about: dict, data_dir: str | None = None) -> Path:
+    """Writes the shipped model ``name`` from a trained ``workdir`` (see the module doc)."""
+    from rp_jax import predict
+    from rp_jax.datasets import loading
+
+    missing = [k for k in ABOUT_KEYS if not about.get(k)]
+    if missing:
+        raise ValueError(f"the about file needs {', '.join(missing)}")
+    rp = predict.load(workdir)
+    cols = loading.load_columns(dataset, split, keys=shipped.SAMPLE_KEYS, config=data_config,
+                                data_dir=data_dir)
+    sample = {k: np.asarray(v[: shipped.SAMPLE_SIZE]) for k, v in cols.items()}
+    pred = sample_predictions(rp, sample).astype(np.float32)
+    folder = shipped.MODELS_DIR / name
+    files.write_json(folder / "config.json", rp.config.to_dict(), default=list)
+    files.write_json(folder / "schedule.json", rp.schedule.to_dict(), default=list)
+    with files.replacing(folder / "params.npz") as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **shipped.flatten(rp.params))
+    with files.replacing(folder / "sample.npz") as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **sample, predictions=pred)
+    record = {"name": name, **{k: about[k] for k in ABOUT_KEYS}, "sample": {
+        "source": f"{dataset}/{data_config}, split {split!r}, first {len(pred)} records",
+        "mae": round(sample_mae(pred, sample), 6)}}
+    files.write_json(folder / "model.json", record)
+    return folder
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m experiments.ship_models",
+                                description=__doc__.split("\n")[0])
+    p.add_argument("workdir", nargs="?", help="the trained workdir of a default run")
+    p.add_argument("name", nargs="?", help="the shipped model's name, e.g. robotcar-synthetic")
+    p.add_argument("--dataset", help="dataset of the sample: webcam_clipart, cmu_seasons, robotcar")
+    p.add_argument("--config", help="its TFDS config, e.g. synthetic or synthetic_small")
+    p.add_argument("--split", default="test", help="its split (default test)")
+    p.add_argument("--about", help="a JSON file with what, command, figures, good_for, not_for")
+    p.add_argument("--list", action="store_true", help="list the shipped models and stop")
+    args = p.parse_args(argv)
+    if args.list:
+        for n in shipped.names():
+            print(n, json.loads((shipped.MODELS_DIR / n / "model.json").read_text())["sample"])
+        return 0
+    if not (args.workdir and args.name and args.dataset and args.config and args.about):
+        p.error("WORKDIR NAME --dataset --config --about are needed (or --list)")
+    try:
+        about = json.loads(Path(args.about).read_text())
+        folder = export(args.workdir, args.name, dataset=args.dataset, data_config=args.config,
+                        split=args.split, about=about)
+    except (OSError, ValueError) as err:
+        print(f"python -m experiments.ship_models: error: {err}", file=sys.stderr)
+        return 2
+    print(f"wrote {folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
