@@ -43,12 +43,18 @@ def datetime_flag(text: str) -> dt.datetime:
 
 def load_predictor(path: str | os.PathLike, flag: str = "--model"):
     """``rp_jax.predict.load`` with its failures as an ``InputError`` naming the flag."""
-    from rp_jax import predict  # JAX: imported once the command has configured the CPU
+    from rp_jax import (
+        predict,  # JAX: imported once the command has configured the CPU
+        shipped,
+    )
 
+    if not Path(path).exists() and str(path) in shipped.names():
+        return predict.load(str(path))  # a model shipped in the package, by name
     path = Path(path)
     if not path.is_dir():
         raise InputError(f"{flag} {path}: no such folder (expected a trained workdir with "
-                         "config.json, schedule.json and checkpoints/)")
+                         "config.json, schedule.json and checkpoints/, or a shipped model: "
+                         f"{', '.join(shipped.names())})")
     try:
         return predict.load(path)
     except (ValueError, KeyError, TypeError, OSError) as err:

@@ -41,3 +41,12 @@ def test_an_unknown_name_lists_the_shipped_models(tmp_path, monkeypatch):
         predict.load("no-such-model")
     with pytest.raises(ValueError, match="no shipped model"):
         shipped.read("no-such-model")
+
+
+def test_the_commands_take_a_shipped_model_by_name(tmp_path, monkeypatch):
+    from rp_jax.commands import InputError, load_predictor
+
+    monkeypatch.chdir(tmp_path)
+    assert load_predictor("robotcar-synthetic").schedule.num_timestamps == 9
+    with pytest.raises(InputError, match="shipped model"):
+        load_predictor("no-such-model")

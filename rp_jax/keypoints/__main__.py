@@ -126,7 +126,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (JPEG, PNG, ...)")
     p.add_argument("--model", required=True, metavar="MODEL",
                    help="trained predictor: a workdir with config.json, schedule.json and "
-                   "checkpoints/ (python -m experiments.webcam_clipart writes one)")
+                   "checkpoints/ (python -m experiments.webcam_clipart writes one), or a "
+                   "model shipped in the package (webcam_clipart-synthetic, "
+                   "cmu_seasons-synthetic, robotcar-synthetic)")
     p.add_argument("--captured", type=datetime_flag, metavar="TIME",
                    help='capture time of every IMAGE on its own wall clock, e.g. "2024-06-01 '
                    '09:30"; default: each image\'s EXIF DateTimeOriginal, else its file name '

@@ -52,8 +52,9 @@ def _parser() -> argparse.ArgumentParser:
                    "minimal scene description; random; most_observed: longest tracks "
                    "(default rp)")
     s.add_argument("--predictor", metavar="MODEL",
-                   help="trained predictor workdir (config.json, schedule.json, checkpoints/); "
-                   "needed by --method rp")
+                   help="trained predictor workdir (config.json, schedule.json, checkpoints/) "
+                   "or a shipped model's name (e.g. cmu_seasons-synthetic); needed by "
+                   "--method rp")
     s.add_argument("--at", type=datetime_flag, metavar="TIME",
                    help='query time, e.g. "2024-12-01 17:00" (wall clock of the map\'s place); '
                    "needed by --method rp unless --all-slots")
