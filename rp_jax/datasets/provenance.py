@@ -52,7 +52,7 @@ def layout_fingerprint(root: str | os.PathLike) -> dict:
     """
     root = Path(root).absolute()
     h = hashlib.sha256()
-    files, total = 0, 0
+    n_files, total = 0, 0
     for dirpath, dirnames, filenames in os.walk(root):
         dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
         for name in sorted(filenames):
@@ -65,9 +65,9 @@ def layout_fingerprint(root: str | os.PathLike) -> dict:
                 continue
             rel = path.relative_to(root).as_posix()
             h.update(f"{rel}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
-            files += 1
+            n_files += 1
             total += st.st_size
-    return {"root": str(root), "files": files, "bytes": total, "digest": h.hexdigest()}
+    return {"root": str(root), "files": n_files, "bytes": total, "digest": h.hexdigest()}
 
 
 def labelling_fingerprint(builder) -> dict:
