@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import files
+from rp_jax import categories, files
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.groundtruth import matching, patches, sfm, triangulation, verification
@@ -86,7 +86,6 @@ RECORD_KEYS = (
     "image_id",
     "keypoint_id",
 )
-_UNLABELLED_PIXEL = 255
 # Camera centres closer than this (relative to their distance from the origin) are "the same".
 _SAME_CENTRE = 1e-9
 
@@ -223,7 +222,7 @@ def _feature_path(cache_dir: Path, config: GroundTruthConfig, capture: Capture) 
 
 def _categories_at(category_map: np.ndarray | None, xy: np.ndarray, size) -> np.ndarray:
     if category_map is None:
-        return np.full(len(xy), -1, np.int32)
+        return np.full(len(xy), categories.UNKNOWN, np.int32)
     w, h = size
     if category_map.shape[:2] != (h, w):
         raise ValueError(
@@ -233,7 +232,7 @@ def _categories_at(category_map: np.ndarray | None, xy: np.ndarray, size) -> np.
     cx = np.clip(c[:, 0], 0, w - 1)
     cy = np.clip(c[:, 1], 0, h - 1)
     cat = category_map[cy, cx].astype(np.int32)
-    cat[cat == _UNLABELLED_PIXEL] = -1
+    cat[cat == categories.UNLABELLED_PIXEL] = categories.UNKNOWN
     return cat
 
 
