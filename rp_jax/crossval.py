@@ -22,7 +22,7 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax import evaluation, experiment, files, predict, time_encoding, train
+from rp_jax import evaluation, experiment, files, predict, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
@@ -80,20 +80,10 @@ def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedul
                              experiment.model_source(held_cols), schedule=schedule,
                              progress=progress)
     rp = predict.load(fold_dir)
-    times = np.asarray(time_encoding.encode(held_cols["hour"], held_cols["minute"],
-                                            held_cols["day"], held_cols["month"],
-                                            fields=config.time_fields,
-                                            encoding=config.time_encoding))
     label, mask = held_cols["label"], held_cols["label_mask"].astype(bool)
-    tr_label, tr_mask = train_cols["label"], train_cols["label_mask"].astype(bool)
-    preds = {
-        "rp": rp(held_cols["patch"], held_cols["xy_normalized"], times),
-        "per_slot_mean": evaluation.per_slot_mean(tr_label, tr_mask, len(label)),
-        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
-            tr_label, tr_mask, train_cols["slot"], held_cols["slot"]),
-        "descriptor_knn": evaluation.descriptor_knn(train_cols["descriptor"], tr_label, tr_mask,
-                                                    held_cols["descriptor"], k=config.knn_k),
-    }
+    tr_label = train_cols["label"]
+    preds = {"rp": experiment.rp_predictions(rp, config, held_cols),
+             **experiment.baseline_predictions(config, train_cols, held_cols)}
     epochs = [r for r in experiment.read_jsonl(fold_dir / "metrics.jsonl") if "val_mae" in r]
     return {
         "counts": {"train": int(len(tr_label)), "held_out": int(len(label))},

@@ -95,6 +95,30 @@ def subset(columns: dict, mask: np.ndarray) -> dict:
     return {k: v[mask] for k, v in columns.items()}
 
 
+def rp_predictions(rp, config, columns: dict) -> np.ndarray:
+    """[N, T] predictions of the trained predictor ``rp`` for the records ``columns``."""
+    from rp_jax import time_encoding
+
+    times = np.asarray(time_encoding.encode(
+        columns["hour"], columns["minute"], columns["day"], columns["month"],
+        fields=config.time_fields, encoding=config.time_encoding))
+    return np.asarray(rp(columns["patch"], columns["xy_normalized"], times))
+
+
+def baseline_predictions(config, train_cols: dict, columns: dict) -> dict[str, np.ndarray]:
+    """The Sec. IV-A baselines' [N, T] predictions for ``columns``, fit on ``train_cols``."""
+    tr_label, tr_mask = train_cols["label"], train_cols["label_mask"].astype(bool)
+    return {
+        "per_slot_mean": evaluation.per_slot_mean(tr_label, tr_mask, len(columns["label"])),
+        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
+            tr_label, tr_mask, train_cols["slot"], columns["slot"]
+        ),
+        "descriptor_knn": evaluation.descriptor_knn(
+            train_cols["descriptor"], tr_label, tr_mask, columns["descriptor"], k=config.knn_k
+        ),
+    }
+
+
 def model_source(columns: dict):
     from rp_jax.datasets.input_pipeline import ArraySource
 
@@ -105,7 +129,7 @@ def run(
     config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
 ) -> dict:
     """Run one experiment end to end; returns the metrics written to ``metrics.json``."""
-    from rp_jax import plots, predict, time_encoding, train
+    from rp_jax import plots, predict, train
 
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -143,30 +167,11 @@ def run(
 
     t0 = time.perf_counter()
     rp = predict.load(workdir)
-    times = np.asarray(
-        time_encoding.encode(
-            test["hour"],
-            test["minute"],
-            test["day"],
-            test["month"],
-            fields=config.time_fields,
-            encoding=config.time_encoding,
-        )
-    )
-    pred = rp(test["patch"], test["xy_normalized"], times)
+    pred = rp_predictions(rp, config, test)
     timings["predict_s"] = time.perf_counter() - t0
 
     label, mask = test["label"], test["label_mask"].astype(bool)
-    tr_label, tr_mask = train_cols["label"], train_cols["label_mask"].astype(bool)
-    baselines = {
-        "per_slot_mean": evaluation.per_slot_mean(tr_label, tr_mask, len(label)),
-        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
-            tr_label, tr_mask, train_cols["slot"], test["slot"]
-        ),
-        "descriptor_knn": evaluation.descriptor_knn(
-            train_cols["descriptor"], tr_label, tr_mask, test["descriptor"], k=config.knn_k
-        ),
-    }
+    baselines = baseline_predictions(config, train_cols, test)
 
     def scores(p):
         e = evaluation.masked_errors(p, label, mask)
@@ -182,7 +187,7 @@ def run(
         **ours,
         "baselines": {name: scores(p) for name, p in baselines.items()},
         "counts": {
-            "train": int(len(tr_label)),
+            "train": int(len(train_cols["label"])),
             "validation": int(len(val_cols["label"])),
             "test": int(len(label)),
             "train_viewpoints": int(len(set(train_cols["viewpoint"].tolist()))),
