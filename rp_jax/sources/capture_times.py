@@ -23,7 +23,6 @@ and every source it tried.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
 import os
 import re
@@ -32,7 +31,7 @@ from pathlib import Path
 
 from rp_jax.schedule import load_spec
 from rp_jax.sources import cmu_seasons, webcam_clipart
-from rp_jax.sources.layout import LayoutError, zone
+from rp_jax.sources.layout import LayoutError, read_name_time_csv, zone
 
 __all__ = [
     "CaptureTimes",
@@ -141,25 +140,7 @@ def read_time_table(path: str | os.PathLike) -> dict[str, dt.datetime]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such time table (expected a name,datetime CSV)")
-    with path.open(newline="") as f:
-        rows = list(csv.reader(f))
-    name_col, time_col = 0, 1
-    if rows and any(c.strip().lower() == "name" for c in rows[0]):
-        header = [c.strip().lower() for c in rows[0]]
-        name_col = header.index("name")
-        time_col = next((header.index(k) for k in ("datetime", "time", "date") if k in header), -1)
-        if time_col < 0:
-            raise LayoutError(f"{path}: header {rows[0]} has no 'datetime' column")
-        rows = rows[1:]
-    out: dict[str, dt.datetime] = {}
-    for line_no, row in enumerate(rows, start=1):
-        if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
-            continue
-        try:
-            out[row[name_col].strip()] = parse_datetime(row[time_col])
-        except (IndexError, ValueError) as err:
-            raise LayoutError(
-                f"{path}: row {line_no} {row} is not 'name,datetime' ({err})") from err
+    out = read_name_time_csv(path, parse_datetime)
     if not out:
         raise LayoutError(f"{path}: no 'name,datetime' rows")
     return out

@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import csv
 import dataclasses
+import datetime as dt
 import logging
 import zoneinfo
 from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
@@ -44,6 +46,7 @@ __all__ = [
     "assign_slots",
     "keep_nearest_per_slot",
     "mixed_sizes_message",
+    "read_name_time_csv",
     "require_layout",
     "segmentation_path",
     "zone",
@@ -86,6 +89,37 @@ def zone(name: str) -> zoneinfo.ZoneInfo:
         return zoneinfo.ZoneInfo(name)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError) as err:
         raise ValueError(f"unknown time zone {name!r} (expected an IANA name)") from err
+
+
+def read_name_time_csv(path: Path, parse: Callable[[str], dt.datetime]) -> dict[str, dt.datetime]:
+    """Image name -> time from a ``name,datetime`` CSV, each time read by ``parse``.
+
+    A first row naming the columns (``name`` and ``datetime``, ``time`` or ``date``) is
+    optional; blank lines and lines starting with ``#`` are skipped.
+
+    Raises:
+      LayoutError: naming the file and the first row that is not ``name,datetime``.
+    """
+    with Path(path).open(newline="") as f:
+        rows = list(csv.reader(f))
+    name_col, time_col = 0, 1
+    if rows and any(c.strip().lower() == "name" for c in rows[0]):
+        header = [c.strip().lower() for c in rows[0]]
+        name_col = header.index("name")
+        time_col = next((header.index(k) for k in ("datetime", "time", "date") if k in header), -1)
+        if time_col < 0:
+            raise LayoutError(f"{path}: header {rows[0]} has no 'datetime' column")
+        rows = rows[1:]
+    out: dict[str, dt.datetime] = {}
+    for line_no, row in enumerate(rows, start=1):
+        if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
+            continue
+        try:
+            out[row[name_col].strip()] = parse(row[time_col])
+        except (IndexError, ValueError) as err:
+            raise LayoutError(
+                f"{path}: row {line_no} {row} is not 'name,datetime' ({err})") from err
+    return out
 
 
 # Reasons a reader drops an input file, in the order its summary lists them.

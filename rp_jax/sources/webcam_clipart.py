@@ -43,7 +43,6 @@ Layout read (see ``DATA_FORMATS.md``; the nesting is UNVERIFIED, so both are acc
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import datetime as dt
 import json
@@ -66,6 +65,7 @@ from rp_jax.sources.layout import (
     assign_slots,
     keep_nearest_per_slot,
     mixed_sizes_message,
+    read_name_time_csv,
     segmentation_path,
     zone,
 )
@@ -189,30 +189,8 @@ def _metadata_csv(scene_dir: Path) -> Path | None:
 
 def _read_time_overrides(path: Path, tz: zoneinfo.ZoneInfo) -> dict[str, dt.datetime]:
     """File name and stem -> local time from a ``name,datetime`` CSV."""
-    out: dict[str, dt.datetime] = {}
-    with path.open(newline="") as f:
-        rows = list(csv.reader(f))
-    name_col, time_col = 0, 1
-    if rows and any(c.strip().lower() == "name" for c in rows[0]):
-        header = [c.strip().lower() for c in rows[0]]
-        name_col = header.index("name")
-        time_col = next(
-            (header.index(k) for k in ("datetime", "time", "date") if k in header), None
-        )
-        if time_col is None:
-            raise LayoutError(f"{path}: header {rows[0]} has no 'datetime' column")
-        rows = rows[1:]
-    for line_no, row in enumerate(rows, start=1):
-        if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
-            continue
-        try:
-            name = row[name_col].strip()
-            when = _parse_datetime(row[time_col], tz)
-        except (IndexError, ValueError) as err:
-            raise LayoutError(
-                f"{path}: row {line_no} {row} is not 'name,datetime' ({err})"
-            ) from err
-        out[name] = when
+    out = read_name_time_csv(path, lambda text: _parse_datetime(text, tz))
+    for name, when in list(out.items()):
         out.setdefault(Path(name).stem, when)
     return out
 
