@@ -43,7 +43,7 @@ from rp_jax.localize.pipeline import LocalizationMap
 from rp_jax.localize.retrieval import GlobalIndex
 from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
 from rp_jax.sources import hloc, images
-from rp_jax.sources.colmap_model import COLMAP_TO_OPENCV_PX, MapPoints
+from rp_jax.sources.colmap_model import COLMAP_TO_OPENCV_PX, MapPoints, mean_per_point
 from rp_jax.sources.layout import LayoutError
 
 __all__ = [
@@ -177,17 +177,6 @@ class MapDescription:
             raise LayoutError(f"{path}: not a map description ({err})") from err
 
 
-def _mean_per_point(values: np.ndarray, obs_point: np.ndarray, ok: np.ndarray, n: int):
-    """[n, D] mean of the ``ok`` observations of each point (NaN where none)."""
-    sums = np.zeros((n, values.shape[1]), np.float64)
-    np.add.at(sums, obs_point[ok], values[ok])
-    counts = np.bincount(obs_point[ok], minlength=n)
-    out = np.full((n, values.shape[1]), np.nan, np.float32)
-    has = counts > 0
-    out[has] = (sums[has] / counts[has, None]).astype(np.float32)
-    return out
-
-
 def _check_keypoints(h5_xy: np.ndarray, model_xy: np.ndarray, path, key: str) -> None:
     """hloc's keypoints of an image must be the model's, less half a pixel (module docstring).
 
@@ -287,7 +276,9 @@ def describe_map(
     if obs_desc is None:
         raise LayoutError("the model has no images")
     ok = np.all(np.isfinite(obs_desc), axis=1)
-    point_desc = _mean_per_point(obs_desc, map_points.obs_point, ok, map_points.num_points)
+    # Summed in float64 and stored as float32, as the map's other descriptors.
+    point_desc = mean_per_point(obs_desc[ok].astype(np.float64), map_points.obs_point[ok],
+                                map_points.num_points).astype(np.float32)
     local_source = SIFT if features is None else f"hloc:{Path(features).name}"
     names = sorted(image_desc)
     vlad_input = "rootsift" if features is None else "l2"
