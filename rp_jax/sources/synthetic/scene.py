@@ -931,13 +931,19 @@ def _hash_rng(*parts: int) -> np.random.Generator:
 
 # ---------------------------------------------------------------- parked cars: dwell times
 
-# How long a car stays in a curb slot depends on the street (modelling assumptions, stated
-# once here): on commercial streets curb space turns over within hours (customers, errands,
-# metered stays of one to two hours), on residential streets residents' cars stay overnight
-# and often for days, and a resident tends to park the same car at the same spot. Stays
-# are lognormal with these medians (hours) and log-sd; the slot's occupancy is the street's
-# (PARKING_OCCUPANCY); a slot alternates stays and empty gaps (an alternating renewal
-# process), simulated within blocks of PARKING_BLOCK_H hours from a stationary start.
+# How long a car stays in a curb slot depends on the street. Stays are lognormal with these
+# medians (hours) and log-sd; the slot's occupancy is the street's (``parking_occupancy``); a
+# slot alternates stays and empty gaps (an alternating renewal process), simulated within
+# blocks of PARKING_BLOCK_H hours from a stationary start. Sources and assumptions:
+# * commercial, median 1.5 h: a downtown length-of-stay survey of two-hour curb spaces
+#   (City of Charlottesville parking study, weblink.charlottesville.org doc 791732: most
+#   stays about 1 h or less, 20 % about 2 h, 15 % 3 h or more, 5 % 4 h or more, mean 1.6 h).
+#   This lognormal's mean is 2.1 h and 19 % of its stays pass 3 h, a heavier tail than
+#   that survey's (noted, not refitted: fitting it would change every rendering);
+# * residential, median 14 h: a resident's overnight stay, from about 18:00 to 08:00 (an
+#   assumption from the working day, not a survey), log-sd 1.0 so that some cars stay days;
+# * RESIDENT_CAR_SHARE and PARK_JITTER_M: assumptions (half the residential stays by the
+#   household's own car; a car stops within +-0.4 m of a slot's centre along the curb).
 PARKING_STAY_MEDIAN_H = {"commercial": 1.5, "residential": 14.0}
 PARKING_STAY_LOG_SD = {"commercial": 0.8, "residential": 1.0}
 PARKING_BLOCK_H = {"commercial": 24.0, "residential": 7 * 24.0}
