@@ -3,10 +3,10 @@
 Every file the project writes (records' side files, layouts, checkpoints' companions,
 reports, figures, models) goes through a temporary name in the same folder and an
 ``os.replace`` onto the final name, so a killed run leaves the old file or the new one,
-never half of one. The temporary file is created private (``tempfile`` makes it 0600);
-before the rename it gets the permissions a plain ``open(path, "w")`` would have given
-(0666 less the umask: 0644 under the usual umask 022), so others can read what the project
-writes. On failure the temporary file is removed and the final name is untouched.
+never half of one. The temporary file is created with the permissions a plain
+``open(path, "w")`` gives (0666 less the umask: 0644 under the usual umask 022), not
+``tempfile``'s private 0600, so others can read what the project writes. On failure the
+temporary file is removed and the final name is untouched.
 
 ``replacing(path)`` is the general form: it yields a temporary path for any writer that
 wants a file name (``cv2.imwrite``, ``np.savez``, ``savefig``, h5py); ``write_bytes``,
@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -29,9 +30,31 @@ __all__ = ["publish_dir", "replacing", "write_bytes", "write_json", "write_text"
 
 
 def _umask() -> int:
+    """The process umask, read without changing it where Linux tells it (/proc): setting it
+    to 0 and back, the only portable way, races with other threads creating files."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def _create_beside(path: Path, suffix: str) -> Path:
+    """A new empty file beside ``path`` with a hidden random name, created 0666 less the
+    umask (what a plain ``open`` gives; ``tempfile.mkstemp`` would make it 0600)."""
+    for _ in range(100):
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}{suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name beside {path}")
 
 
 def _readable(path: Path, *, directory: bool = False) -> None:
@@ -55,12 +78,9 @@ def replacing(path: str | os.PathLike, *, suffix: str = ".tmp") -> Iterator[Path
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
+    tmp = _create_beside(path, suffix)
     try:
         yield tmp
-        _readable(tmp)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
