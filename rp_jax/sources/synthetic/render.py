@@ -675,9 +675,15 @@ def _reflect_sky_in_glass(
     when the sun stands in the mirrored direction) or, below the horizon, the street's dim
     horizon colour. Glass is the facade's texels marked as glass (aux >= 128).
     """
-    mat_code = np.append(quads.material, -1).astype(np.int8)
-    glass_ss = (np.take(mat_code, gbuf.qid) == Material.FACADE) & (gbuf.albedo[..., 3] >= 128)
-    if not glass_ss.any():
+    # Glass texels carry aux >= 128; only those few subsamples need their quad's material.
+    cand = np.flatnonzero(gbuf.albedo[..., 3].ravel() >= 128)
+    if len(cand) == 0:
+        return
+    is_glass = np.append(quads.material, -1)[gbuf.qid.ravel()[cand]] == Material.FACADE
+    glass_ss = np.zeros(gbuf.qid.size, bool)
+    glass_ss[cand[is_glass]] = True
+    glass_ss = glass_ss.reshape(gbuf.qid.shape)
+    if not is_glass.any():
         return
     Hc, Wc = rad.shape[:2]
     glass = cv2.resize(glass_ss.astype(np.float32), (Wc, Hc), interpolation=cv2.INTER_AREA)
