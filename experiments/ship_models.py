@@ -30,14 +30,11 @@ ABOUT_KEYS = ("what", "command", "figures", "good_for", "not_for")
 
 
 def sample_predictions(predictor, sample) -> np.ndarray:
-    """[N, T] predictions of ``predictor`` on a ``sample.npz``'s inputs."""
-    from rp_jax import time_encoding
+    """[N, T] predictions of ``predictor`` on a ``sample.npz``'s inputs (the records'
+    columns, predicted as the Sec. IV-A experiment does)."""
+    from rp_jax import experiment
 
-    cfg = predictor.config
-    times = np.asarray(time_encoding.encode(
-        sample["hour"], sample["minute"], sample["day"], sample["month"],
-        fields=cfg.time_fields, encoding=cfg.time_encoding))
-    return np.asarray(predictor(sample["patch"], sample["xy_normalized"], times))
+    return experiment.rp_predictions(predictor, predictor.config, sample)
 
 
 def sample_mae(pred: np.ndarray, sample) -> float:
