@@ -135,7 +135,10 @@ def _layer(module: str) -> tuple[int, str]:
     """(rank, package) of a module: the longest listed prefix decides."""
     if module.rsplit(".", 1)[-1] == "__main__":
         return _TOP, module
-    best = max((p for p in _RANK if module == p or module.startswith(p + ".")), key=len)
+    prefixes = [p for p in _RANK if module == p or module.startswith(p + ".")]
+    if not prefixes:
+        raise AssertionError(f"{module} is in no layer: add it to LAYERS (and the README)")
+    best = max(prefixes, key=len)
     return _RANK[best], best
 
 
