@@ -5,56 +5,51 @@ then match every interest point against every other image (nearest neighbour + r
 test), verify the matches geometrically (static camera, known poses, or a robust
 fundamental matrix), and turn the inliers into the repeatability vector y^j with its mask.
 
-Work is cached so that an interrupted build resumes where it stopped:
-
-* ``<cache_dir>/features/<detector-nK>/<viewpoint>/<image>.npz``: one per image (interest
-  points, descriptors, categories); a re-run skips detection for these while the image
-  file's bytes are the same (SHA-1: size and mtime can lie), and reads the categories
-  again when the category map's bytes changed.
-* ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts and a
-  fingerprint of the captures, their image files' and category maps' bytes): the records
-  of a finished viewpoint; a re-run with the same captures returns it without recomputing.
-
-Neither cache holds the 64x64x3 patches: at 12 KB per interest point they were 95 % of the
-bytes (a full synthetic CMU build cached ~60 GB). Patches are cut from the images when the
-records are returned (``attach_patches``), and a caller that keeps only some records (the
-dataset builders keep ``records_per_image``) asks for records without patches, selects,
-then cuts the patches of the kept rows only. Cutting is deterministic, so the records are
-identical to cutting at detection time.
+Work is cached so that an interrupted build resumes where it stopped: the features of each
+image and the records of each finished viewpoint (``rp_jax.groundtruth.cache`` has the
+layout and the keys). Neither cache holds the 64x64x3 patches (95 % of the bytes): they are
+cut from the images when the records are returned (``attach_patches``), and a caller that
+keeps only some records (the dataset builders keep ``records_per_image``) asks for records
+without patches, selects, then cuts the patches of the kept rows only. Cutting is
+deterministic, so the records are identical to cutting at detection time.
 
 Every file is written atomically (temporary name, then ``os.replace``). The per-viewpoint
 function is pure given its inputs (callables must be picklable, e.g. module-level
 functions), so ``label_viewpoints`` can fan viewpoints out to processes, and the same
 function maps onto an Apache Beam ``Map`` later.
 
-With neither poses nor a static camera (``"sfm"`` mode) the paper's step 4 is SfM per
-viewpoint: ``sfm.reconstruct_viewpoint`` runs COLMAP on our features and matches; a
-viewpoint whose images do not all register yields no records (as in the paper); otherwise
-a match must be a robust-fundamental-matrix inlier *and* consistent with the SfM poses.
-The ``"fundamental"`` mode stops at the two-view check (no SfM), a faster approximation.
+The verification mode of a viewpoint and its application to every image pair live in
+``rp_jax.groundtruth.verify_matches``. With neither poses nor a static camera (``"sfm"``
+mode) the paper's step 4 is SfM per viewpoint: ``sfm.reconstruct_viewpoint`` runs COLMAP
+on our features and matches; a viewpoint whose images do not all register yields no
+records (as in the paper); otherwise a match must be a robust-fundamental-matrix inlier
+*and* consistent with the SfM poses. The ``"fundamental"`` mode stops at the two-view
+check (no SfM), a faster approximation.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
-import hashlib
-import json
 import logging
 import multiprocessing as mp
-import re
-import zipfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from rp_jax import categories, files
+from rp_jax import categories
+from rp_jax.groundtruth import cache, matching, patches, sfm
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
-from rp_jax.groundtruth import matching, patches, sfm, triangulation, verification
 from rp_jax.groundtruth.config import GroundTruthConfig
+from rp_jax.groundtruth.verify_matches import (
+    CameraOf,
+    check_one_size,
+    intrinsics_of,
+    resolve_mode,
+    verify_matches,
+)
 from rp_jax.sources.capture import Capture
-from rp_jax.sources.layout import mixed_sizes_message
 
 __all__ = [
     "RECORD_KEYS",
@@ -86,38 +81,16 @@ RECORD_KEYS = (
     "image_id",
     "keypoint_id",
 )
-# Camera centres closer than this (relative to their distance from the origin) are "the same".
-_SAME_CENTRE = 1e-9
-
 LoadImage = Callable[[Capture], "np.ndarray | None"]
 LoadCategory = Callable[[Capture], "np.ndarray | None"]
-CameraOf = Callable[[Capture], np.ndarray]
 
 
 # ----------------------------------------------------------------------------- files
 
 
-def _safe_name(name: str) -> str:
-    """A file-name-safe, collision-free version of an id."""
-    clean = re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("._") or "id"
-    if clean == str(name):
-        return clean
-    return f"{clean[:80]}-{hashlib.sha1(str(name).encode()).hexdigest()[:8]}"
-
-
-def _atomic_savez(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    with files.replacing(path) as tmp, open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-
-
-def _load_npz(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
-
-
 def load_records(path: str | Path) -> dict[str, np.ndarray]:
     """Read a viewpoint's records written by ``label_viewpoint`` (a ``.npz``)."""
-    return _load_npz(Path(path))
+    return cache.load_npz(Path(path))
 
 
 # ----------------------------------------------------------------------------- per image
@@ -177,49 +150,6 @@ def attach_patches(
     return out
 
 
-class _StaleCache(Exception):
-    """A cached result of an image file that has changed since."""
-
-
-def _file_key(path) -> str:
-    """SHA-1 of a file's bytes, or ``"missing"`` if it cannot be read.
-
-    The key of a cached result: size and mtime can lie (a file rewritten within the
-    mtime's resolution, or copied with its times kept), the bytes cannot; reading an image
-    once more is cheap next to detecting its interest points.
-    """
-    if path is None:
-        return "none"
-    h = hashlib.sha1()
-    try:
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-    except (OSError, TypeError):
-        return "missing"
-    return h.hexdigest()
-
-
-def _image_key(capture: Capture) -> str:
-    """What the interest points of a capture depend on: the bytes of its image file."""
-    return _file_key(capture.image_path)
-
-
-def _category_key(capture: Capture) -> str:
-    """What its categories depend on: the bytes of its category map (``"none"`` if none)."""
-    return _file_key(capture.meta.get("segmentation_path"))
-
-
-def _feature_path(cache_dir: Path, config: GroundTruthConfig, capture: Capture) -> Path:
-    return (
-        cache_dir
-        / "features"
-        / config.feature_tag()
-        / _safe_name(capture.viewpoint)
-        / f"{_safe_name(capture.image_id)}.npz"
-    )
-
-
 def _categories_at(category_map: np.ndarray | None, xy: np.ndarray, size) -> np.ndarray:
     if category_map is None:
         return np.full(len(xy), categories.UNKNOWN, np.int32)
@@ -269,33 +199,19 @@ def image_features(
       int32, ``image_size`` [2] int32 (W, H); or None if the image is unreadable (never
       cached, so it is retried next time). Patches: ``attach_patches``.
     """
-    path = _feature_path(Path(cache_dir), config, capture) if cache_dir is not None else None
-    if path is not None and path.exists():
-        try:
-            cached = _load_npz(path)
-            cached.pop("patch", None)  # written by versions that cached patches
-            cached.pop("file_stamp", None)  # (size, mtime) of older versions: not trusted
-            image_key = cached.pop("image_key", None)
-            if image_key is None or str(image_key) != _image_key(capture):
-                raise _StaleCache
-            category_key = cached.pop("category_key", None)
-            has_map = bool(cached.pop("has_category_map", False))
-            if load_category is not None and (
-                not has_map or category_key is None or str(category_key) != _category_key(capture)
-            ):
-                # Cached without categories, or its category map changed since: read them
-                # now (no detection needed).
-                size = tuple(int(v) for v in cached["image_size"])
-                cached["category"] = _categories_of(capture, load_category(capture),
-                                                    cached["xy"], size)
-            return cached
-        except _StaleCache:
-            logger.info("re-detecting %s: the image changed since it was cached",
-                        capture.image_path)
-        except (OSError, ValueError, zipfile.BadZipFile) as err:  # e.g. a foreign file
-            logger.warning(
-                "re-detecting %s: unreadable feature cache %s (%s)", capture.image_path, path, err
-            )
+    path = cache.feature_path(cache_dir, config, capture) if cache_dir is not None else None
+    hit = None
+    if path is not None:
+        hit = cache.read_features(path, capture, with_categories=load_category is not None)
+    if hit is not None:
+        cached, categories_stale = hit
+        if categories_stale:
+            # Cached without categories, or its category map changed since: read them now
+            # (no detection needed).
+            size = tuple(int(v) for v in cached["image_size"])
+            category_map = load_category(capture)
+            cached["category"] = _categories_of(capture, category_map, cached["xy"], size)
+        return cached
     image = _checked_image(capture, load_image)
     if image is None:
         return None
@@ -311,163 +227,8 @@ def image_features(
         "image_size": np.array([w, h], np.int32),
     }
     if path is not None:
-        _atomic_savez(
-            path,
-            {
-                **out,
-                "has_category_map": np.array(category_map is not None),
-                "image_key": np.array(_image_key(capture)),
-                "category_key": np.array(_category_key(capture)),
-            },
-        )
+        cache.write_features(path, capture, out, has_category_map=category_map is not None)
     return out
-
-
-# ----------------------------------------------------------------------------- verification
-
-
-def _intrinsics(capture: Capture, camera_of: CameraOf | None, image_size) -> np.ndarray:
-    if camera_of is not None:
-        K = np.asarray(camera_of(capture), np.float64)
-        if K.shape != (3, 3):
-            raise ValueError(f"camera_of({capture.image_path}) must return a 3x3 K, got {K.shape}")
-        return K
-    cam = capture.camera
-    if cam.distortion.size and np.any(cam.distortion != 0):
-        raise ValueError(
-            f"{capture.image_path}: camera has distortion {cam.distortion.tolist()}; pass "
-            "camera_of(capture) -> K of the (undistorted) images load_image returns"
-        )
-    if tuple(int(v) for v in image_size) != (cam.width, cam.height):
-        raise ValueError(
-            f"{capture.image_path}: loaded image is {tuple(image_size)} but the capture's "
-            f"camera is {cam.size}; pass camera_of(capture) -> K for the loaded images"
-        )
-    return cam.K
-
-
-def _resolve_mode(config: GroundTruthConfig, captures: Sequence[Capture]) -> str:
-    mode = config.verification
-    all_posed = all(c.has_pose for c in captures)
-    if mode == "auto":
-        return "pose" if all_posed else "sfm"
-    if mode == "pose" and not all_posed:
-        missing = next(c for c in captures if not c.has_pose)
-        raise ValueError(f"verification='pose' but {missing.image_path} has no pose (R, t)")
-    return mode
-
-
-def _check_one_size(viewpoint: str, captures: Sequence[Capture], sizes) -> None:
-    """A static camera's images share one size: the < 5 px check compares pixel positions."""
-    by_size: dict[tuple[int, int], list[str]] = {}
-    for c, size in zip(captures, sizes):
-        by_size.setdefault((int(size[0]), int(size[1])), []).append(str(c.image_path))
-    if len(by_size) > 1:
-        raise ValueError(mixed_sizes_message(f"static viewpoint {viewpoint!r}", by_size))
-
-
-def _pose_consistent(K1, R1, t1, K2, R2, t2, x1, x2, config: GroundTruthConfig) -> np.ndarray:
-    """Steps 3-4 with poses: Sampson error, then a 3D point in front of both cameras."""
-    C1 = -np.asarray(R1).T @ np.asarray(t1)
-    C2 = -np.asarray(R2).T @ np.asarray(t2)
-    if np.linalg.norm(C1 - C2) <= _SAME_CENTRE * (1.0 + np.linalg.norm(C1)):
-        # No baseline: no epipolar geometry and no triangulation; the views are related
-        # by the infinite homography.
-        err = verification.rotation_only_error(K1, R1, K2, R2, x1, x2)
-        return err < config.reprojection_threshold
-    F = verification.fundamental_from_poses(K1, R1, t1, K2, R2, t2)
-    ok = verification.epipolar_inliers(F, x1, x2, config.sampson_threshold)
-    sel = np.flatnonzero(ok)
-    ok[sel] = triangulation.triangulation_inliers(
-        K1,
-        R1,
-        t1,
-        K2,
-        R2,
-        t2,
-        x1[sel],
-        x2[sel],
-        reprojection_threshold=config.reprojection_threshold,
-        min_angle_deg=config.min_triangulation_angle_deg,
-    )
-    return ok
-
-
-def verify_matches(
-    captures: Sequence[Capture],
-    xys: Sequence[np.ndarray],
-    matches: matching.PairwiseMatches,
-    *,
-    mode: str,
-    config: GroundTruthConfig,
-    intrinsics: Sequence[np.ndarray] | None = None,
-    poses: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
-    progress: bool = False,
-) -> list[np.ndarray]:
-    """Inlier flags of every interest point against every image (steps 3-4 of Sec. III-D).
-
-    Args:
-      captures: the readable images, aligned with ``xys`` and ``matches``.
-      xys: per image, [N_i, 2] pixel coordinates.
-      matches: nearest neighbours and ratio test of all ordered pairs.
-      mode: ``"static"``, ``"pose"``, ``"fundamental"`` or ``"sfm"`` (robust fundamental
-        matrix, then consistency with the SfM poses).
-      config: thresholds.
-      intrinsics: per image 3x3 K (``"pose"`` and ``"sfm"`` modes).
-      poses: per image world-to-camera (R, t) (``"pose"``: the captures' own if None;
-        ``"sfm"``: the reconstruction's, required).
-      progress: show a tqdm bar over images.
-
-    Returns:
-      per image, bool [N_i, n_images]: inlier correspondence in image b (diagonal False).
-    """
-    n = len(xys)
-    if mode == "sfm" and poses is None:
-        raise ValueError("verification mode 'sfm' needs the reconstruction's poses")
-
-    def pose_of(i: int) -> tuple[np.ndarray, np.ndarray]:
-        return poses[i] if poses is not None else (captures[i].R, captures[i].t)
-
-    from tqdm.auto import tqdm
-
-    inliers = []
-    for a in tqdm(range(n), desc=f"verification ({mode})", disable=not progress, leave=False):
-        ok_a = np.zeros((len(xys[a]), n), bool)
-        for b in range(n):
-            if b == a:
-                continue
-            cand = np.flatnonzero(matches.ratio_ok[a][:, b])
-            if cand.size == 0:
-                continue
-            x1 = xys[a][cand]
-            x2 = xys[b][matches.nn[a][cand, b]]
-            if mode == "static":
-                ok = verification.static_inliers(x1, x2, config.static_pixel_threshold)
-            elif mode in ("fundamental", "sfm"):
-                ok = verification.robust_fundamental_inliers(
-                    x1,
-                    x2,
-                    threshold=config.magsac_threshold,
-                    confidence=config.magsac_confidence,
-                    min_matches=config.min_pair_matches,
-                )
-            elif mode == "pose":
-                ok = np.ones(len(cand), bool)
-            else:
-                raise ValueError(f"unknown verification mode {mode!r}")
-            if mode in ("pose", "sfm") and ok.any():
-                ok[ok] = _pose_consistent(
-                    intrinsics[a],
-                    *pose_of(a),
-                    intrinsics[b],
-                    *pose_of(b),
-                    x1[ok],
-                    x2[ok],
-                    config,
-                )
-            ok_a[cand, b] = ok
-        inliers.append(ok_a)
-    return inliers
 
 
 # ----------------------------------------------------------------------------- records
@@ -498,24 +259,6 @@ def _empty_records(num_timestamps: int, desc_width: int) -> dict[str, np.ndarray
         "image_id": np.zeros(0, "<U1"),
         "keypoint_id": np.zeros(0, np.int32),
     }
-
-
-def _fingerprint(captures: Sequence[Capture], with_categories: bool) -> str:
-    """Hash of what the records depend on besides the config: ids, slots, times, poses, K,
-    the bytes of each image file and, with categories, of each category map.
-
-    (What the callables return is not hashed: a changed ``camera_of`` needs a new cache.)
-    """
-    h = hashlib.sha1(b"categories-v2" if with_categories else b"v2")
-    for c in captures:
-        h.update(json.dumps([c.image_id, int(c.cycle), int(c.slot), c.time.isoformat()]).encode())
-        h.update(_image_key(c).encode())
-        if with_categories:
-            h.update(_category_key(c).encode())
-        h.update(np.asarray(c.camera.K, np.float64).tobytes())
-        if c.has_pose:
-            h.update(c.R.tobytes() + c.t.tobytes())
-    return h.hexdigest()
 
 
 def _check_captures(captures: Sequence[Capture], num_timestamps: int) -> str:
@@ -583,21 +326,13 @@ def label_viewpoint(
 
     config = GroundTruthConfig() if config is None else config
     viewpoint = _check_captures(captures, num_timestamps)
-    fingerprint = _fingerprint(captures, load_category is not None)
+    fingerprint = cache.fingerprint(captures, load_category is not None)
     out_path = None
     if cache_dir is not None:
-        cache_dir = Path(cache_dir)
-        out_path = (
-            cache_dir / "labels" / config.tag(num_timestamps) / f"{_safe_name(viewpoint)}.npz"
-        )
-        meta_path = out_path.with_suffix(".json")
-        if out_path.exists() and meta_path.exists():
-            meta = json.loads(meta_path.read_text())
-            if meta.get("fingerprint") == fingerprint:
-                records = _load_npz(out_path)
-                records.pop("patch", None)  # written by versions that cached patches
-                return attach_patches(records, captures, load_image) if with_patches else records
-            logger.info("captures of viewpoint %s changed; relabelling", viewpoint)
+        out_path = cache.labels_path(cache_dir, config, num_timestamps, viewpoint)
+        records = cache.read_labels(out_path, fingerprint)
+        if records is not None:
+            return attach_patches(records, captures, load_image) if with_patches else records
 
     feats, readable = [], []
     for c in tqdm(captures, desc=f"features {viewpoint}", disable=not progress, leave=False):
@@ -626,9 +361,9 @@ def label_viewpoint(
     if not readable:
         records = _empty_records(num_timestamps, width)
     else:
-        mode = _resolve_mode(config, readable)
+        mode = resolve_mode(config, readable)
         if mode == "static":
-            _check_one_size(viewpoint, readable, [f["image_size"] for f in feats])
+            check_one_size(viewpoint, readable, [f["image_size"] for f in feats])
         norm = features_lib.descriptor_norm(config.detector)
         descs = [matching.prepare_descriptors(f["descriptor"], norm) for f in feats]
         matches = matching.match_all_pairs(
@@ -638,7 +373,7 @@ def label_viewpoint(
         intrinsics, poses = None, None
         if mode in ("pose", "sfm"):
             intrinsics = [
-                _intrinsics(c, camera_of, f["image_size"]) for c, f in zip(readable, feats)
+                intrinsics_of(c, camera_of, f["image_size"]) for c, f in zip(readable, feats)
             ]
         if mode == "sfm":
             poses = sfm.reconstruct_viewpoint(
@@ -684,8 +419,7 @@ def label_viewpoint(
             "fingerprint": fingerprint,
             "config": config.tag(num_timestamps),
         }
-        _atomic_savez(out_path, records)
-        files.write_text(out_path.with_suffix(".json"), json.dumps(meta, indent=1))
+        cache.write_labels(out_path, records, meta)
     return attach_patches(records, readable, load_image) if with_patches else records
 
 
