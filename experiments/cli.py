@@ -10,7 +10,7 @@ Every experiment takes the same flags::
                          working directory; ~/.cache/rp_jax/... for an installed wheel)
     --config.FIELD=VALUE any field of the experiment's config, e.g. --config.num_epochs=3
     --cross-validate     instead of the test run: hold out each training viewpoint in turn
-                         (rp_jax.crossval); writes <workdir>/crossval/crossval.{json,md}
+                         (experiments.sec4a.crossval); writes <workdir>/crossval/crossval.{json,md}
     --folds N            with --cross-validate: N groups of viewpoints (default: one each)
 """
 
@@ -129,12 +129,13 @@ def parse_flags(argv: list[str] | None, name: str,
 
 
 def main(argv, name: str, get_config, doc: str) -> int:
-    """Parse flags, run ``rp_jax.experiment.run`` and print the headline figures."""
+    """Parse flags, run ``experiments.sec4a.experiment.run`` and print the headline figures."""
     config, workdir, args = parse_flags(argv, name, get_config, doc, cross_validation=True)
     from rp_jax import platform
 
     platform.configure_cpu()
-    from rp_jax import experiment, train
+    from experiments.sec4a import experiment
+    from rp_jax import train
     from rp_jax.sources.layout import LayoutError
 
     try:
@@ -167,7 +168,7 @@ def main(argv, name: str, get_config, doc: str) -> int:
 
 def _cross_validate(config, workdir: Path, folds: int) -> int:
     """Leave-viewpoints-out over the training split; prints the summary table."""
-    from rp_jax import crossval, experiment
+    from experiments.sec4a import crossval, experiment
 
     data = experiment.build_dataset(config, workdir)
     result = crossval.cross_validate(config, workdir, data["train"], num_folds=folds)

@@ -32,7 +32,7 @@ ABOUT_KEYS = ("what", "command", "figures", "good_for", "not_for")
 def sample_predictions(predictor, sample) -> np.ndarray:
     """[N, T] predictions of ``predictor`` on a ``sample.npz``'s inputs (the records'
     columns, predicted as the Sec. IV-A experiment does)."""
-    from rp_jax import experiment
+    from experiments.sec4a import experiment
 
     return experiment.rp_predictions(predictor, predictor.config, sample)
 

@@ -109,11 +109,10 @@ LAYERS = {
                     "rp_jax.files", "rp_jax.sun", "rp_jax.plots"),
     "data": ("rp_jax.sources",),
     "labelling": ("rp_jax.groundtruth",),
-    "learning": ("rp_jax.datasets", "rp_jax.checkpoints", "rp_jax.train", "rp_jax.predict",
-                 "rp_jax.evaluation", "rp_jax.shipped"),
+    "learning": ("rp_jax.configs", "rp_jax.datasets", "rp_jax.checkpoints", "rp_jax.train",
+                 "rp_jax.predict", "rp_jax.evaluation", "rp_jax.shipped"),
     "applications": ("rp_jax.mapsum", "rp_jax.localize", "rp_jax.keypoints"),
-    "drivers": ("rp_jax.experiment", "rp_jax.configs", "rp_jax.crossval", "rp_jax.demo",
-                "experiments"),
+    "drivers": ("experiments",),
     "entry points": ("rp_jax.commands",),
 }
 _RANK = {prefix: i for i, (_, prefixes) in enumerate(LAYERS.items()) for prefix in prefixes}

@@ -7,11 +7,11 @@ T = 12 dates per year (Mar 04 ... Dec 21), M = 1 year, slices 6, 7, 9 train and 
 the time input is the day of the year (d = 2).
 """
 
-from rp_jax.configs import experiment
+from experiments.sec4a import config as sec4a_config
 
 
 def get_config(size: str = "full"):
-    config = experiment.get_config(size)
+    config = sec4a_config.get_config(size)
     config.dataset = "cmu_seasons"
     config.schedule = "cmu_seasons"  # T = 12
     config.time_fields = "day_of_year"  # d = 2 (day, month)

@@ -8,7 +8,7 @@ d = 2); the map is the Extended CMU Seasons test slice 8 (its reference model), 
 with the slice's queries of every date (the paper used Mar 04, 2011 only: pass
 ``--config.map.query_dates=('2011-03-04',)`` for its exact protocol), on three synthetic
 world seeds (``--seeds``). The training fields are those of
-``rp_jax/configs/experiment.py``; everything about the map lives in ``config.map`` (so
+``experiments/sec4a/config.py``; everything about the map lives in ``config.map`` (so
 changing it never invalidates a trained RP in ``<workdir>/rp``).
 
 Default size: ``small`` (the entry point adds ``--size small`` unless told otherwise):
@@ -21,11 +21,11 @@ and ``--config.map.root``).
 
 import ml_collections
 
-from rp_jax.configs import experiment
+from experiments.sec4a import config as sec4a_config
 
 
 def get_config(size: str = "small") -> ml_collections.ConfigDict:
-    config = experiment.get_config(size)
+    config = sec4a_config.get_config(size)
     config.dataset = "robotcar"
     config.schedule = "robotcar"  # T = 9, 9:00 ... 17:00
     config.time_fields = "time_of_day"  # d = 2 (hour, minute)

@@ -52,7 +52,8 @@ from tqdm.auto import tqdm
 
 from experiments.map_summarization import report
 from experiments.map_summarization.train import train_cmu_predictor, train_predictor
-from rp_jax import experiment, files, plots
+from experiments.sec4a import experiment
+from rp_jax import files, plots
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize import (
     LocalizationMap,

@@ -15,7 +15,8 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
-from rp_jax import experiment, predict, train
+from experiments.sec4a import experiment
+from rp_jax import predict, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = ["cmu_config", "rp_config", "train_cmu_predictor", "train_predictor"]

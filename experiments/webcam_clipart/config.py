@@ -16,11 +16,11 @@ Expected on the synthetic world (version 2): test MAE 0.117 against 0.192 for th
 mean and 0.189 for the slot-conditioned mean.
 """
 
-from rp_jax.configs import experiment
+from experiments.sec4a import config as sec4a_config
 
 
 def get_config(size: str = "full"):
-    config = experiment.get_config(size)
+    config = sec4a_config.get_config(size)
     config.dataset = "webcam_clipart"
     config.schedule = "webcam_clipart"  # T = 21
     config.time_fields = "time_of_day"  # d = 2 (hour, minute)

@@ -2,7 +2,7 @@
 
 Run it on the built-in learnable task:
 
-    python -m rp_jax.demo --workdir runs/demo
+    python -m experiments.demo --workdir runs/demo
 
 Expected: validation MSE far below the per-slot-mean baseline's (both printed), in about a
 minute on 2 CPU cores. Experiments import this and override only what differs.

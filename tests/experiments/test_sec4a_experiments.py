@@ -84,7 +84,7 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
 
 
 def test_split_validation_holds_out_whole_viewpoints():
-    from rp_jax.experiment import split_validation
+    from experiments.sec4a.experiment import split_validation
 
     vps = np.array(["a", "a", "b", "c", "c", "d"])
     mask = split_validation(vps, 0.25, seed=0)

@@ -192,7 +192,7 @@ def _call(fn: Callable[[], object]):
 
 
 def _folds(n: int):
-    from rp_jax import crossval
+    from experiments.sec4a import crossval
 
     return lambda: crossval.viewpoint_folds(np.array(["a", "b", "b"]), num_folds=n)
 

@@ -22,7 +22,8 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
-from rp_jax import evaluation, experiment, files, predict, train
+from experiments.sec4a import experiment
+from rp_jax import evaluation, files, predict, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]

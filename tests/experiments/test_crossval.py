@@ -1,12 +1,12 @@
-"""Cross-validation over training viewpoints: folds, scores, resume (rp_jax.crossval)."""
+"""Cross-validation over training viewpoints: folds, scores, resume (experiments.sec4a.crossval)."""
 
 import json
 
 import numpy as np
 import pytest
 
+from experiments.sec4a import crossval
 from experiments.webcam_clipart.config import get_config
-from rp_jax import crossval
 from rp_jax import schedule as schedule_lib
 from rp_jax.datasets import learnable_task
 

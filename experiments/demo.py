@@ -1,4 +1,4 @@
-"""``python -m rp_jax.demo``: train the predictor on the built-in learnable task and report.
+"""``python -m experiments.demo``: train the predictor on the built-in learnable task and report.
 
 A check of the whole training machinery (Sec. III-B/C) that needs no dataset: labels are a
 known function of patch and time (``rp_jax.datasets.learnable_task``), so a working
