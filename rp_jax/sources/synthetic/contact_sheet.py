@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rp_jax.sources.synthetic import layouts, presets
+from rp_jax.sources.synthetic import frame_jobs, layouts, presets
 
 __all__ = ["contact_sheet", "render_sheets"]
 
@@ -110,7 +110,7 @@ def render_sheets(
         frames, labels = [], []
         for when in times:
             job = _webcam_job(scene_index, when, width, height, seed)
-            frames.append(np.asarray(presets._render(job).rgb))
+            frames.append(np.asarray(frame_jobs.render_frame(job).rgb))
             labels.append(when.strftime("%b %d %H:%M"))
         sheet = contact_sheet(frames, labels, columns=columns)
         title = np.full((28, sheet.shape[1], 3), 255, np.uint8)

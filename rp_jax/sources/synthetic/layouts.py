@@ -37,6 +37,7 @@ import numpy as np
 
 from rp_jax import files
 from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
+from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Camera
 from rp_jax.sources.colmap_model import colmap_xy
 
@@ -339,7 +340,7 @@ def write_cmu_poses(path: Path, entries: Iterable[tuple[str, np.ndarray, np.ndar
 
 CMU_QUERY_POSES_DIR = "camera-poses"
 _CMU_QUERY_POSES_FILE = re.compile(r"^query-poses-\d{8}\.txt$")
-_CMU_TIMEZONE = "America/New_York"
+_CMU_TIMEZONE = load_spec("cmu_seasons")["timezone"]
 
 
 def write_cmu_query_poses(

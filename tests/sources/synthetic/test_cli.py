@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from rp_jax.sources.synthetic import __main__ as cli
-from rp_jax.sources.synthetic import presets
+from rp_jax.sources.synthetic import frame_jobs
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -46,8 +46,8 @@ def test_out_dir_that_is_a_file(tmp_path, capsys):
 def test_tiny_run_writes_layout(tmp_path, monkeypatch, capsys):
     from test_presets import fake_render, fake_scene
 
-    monkeypatch.setattr(presets, "_scene", fake_scene)
-    monkeypatch.setattr(presets, "_render", fake_render)
+    monkeypatch.setattr(frame_jobs, "scene_of", fake_scene)
+    monkeypatch.setattr(frame_jobs, "render_frame", fake_render)
     out = tmp_path / "webcam"
     assert (
         cli.main(["webcam_clipart", str(out), "--size", "tiny", "--workers", "1", "--quiet"]) == 0

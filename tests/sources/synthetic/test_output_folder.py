@@ -9,14 +9,14 @@ from pathlib import Path
 import pytest
 
 from rp_jax.sources.synthetic import __main__ as cli
-from rp_jax.sources.synthetic import output_folder, presets
+from rp_jax.sources.synthetic import frame_jobs, output_folder, presets
 from tests.sources.synthetic.test_presets import fake_render, fake_scene
 
 
 @pytest.fixture
 def fake_world(monkeypatch):
-    monkeypatch.setattr(presets, "_scene", fake_scene)
-    monkeypatch.setattr(presets, "_render", fake_render)
+    monkeypatch.setattr(frame_jobs, "scene_of", fake_scene)
+    monkeypatch.setattr(frame_jobs, "render_frame", fake_render)
 
 
 def _checksums(root: Path) -> dict[str, str]:
@@ -87,11 +87,11 @@ def test_a_killed_render_is_still_its_own(fake_world, tmp_path, monkeypatch):
         calls.append(job)
         return fake_render(job)
 
-    monkeypatch.setattr(presets, "_render", killed)
+    monkeypatch.setattr(frame_jobs, "render_frame", killed)
     with pytest.raises(KeyboardInterrupt):
         _generate(tmp_path / "a")
     assert not (tmp_path / "a" / "_synthetic" / "generation.json").exists()
-    monkeypatch.setattr(presets, "_render", fake_render)
+    monkeypatch.setattr(frame_jobs, "render_frame", fake_render)
     _generate(tmp_path / "a")  # resumes: no --overwrite needed
     with pytest.raises(output_folder.OutputFolderError, match="seed 5"):
         _generate(tmp_path / "a", seed=7)

@@ -25,7 +25,7 @@ import scipy.io.matlab
 
 from rp_jax import categories, sun
 from rp_jax.schedule import preset as schedule_preset
-from rp_jax.sources.synthetic import layouts, presets
+from rp_jax.sources.synthetic import frame_jobs, layouts, presets
 from rp_jax.sources.synthetic.route import rotation_ned
 
 # --------------------------------------------------------------------------- a tiny exact world
@@ -101,8 +101,8 @@ def fake_render(job: presets.FrameJob):
 
 @pytest.fixture
 def fake_world(monkeypatch):
-    monkeypatch.setattr(presets, "_scene", fake_scene)
-    monkeypatch.setattr(presets, "_render", fake_render)
+    monkeypatch.setattr(frame_jobs, "scene_of", fake_scene)
+    monkeypatch.setattr(frame_jobs, "render_frame", fake_render)
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -210,11 +210,11 @@ def test_determinism_and_resume(fake_world, tmp_path):
         calls.append(job.image_path)
         return fake_render(job)
 
-    presets._render, saved = counting, presets._render
+    frame_jobs.render_frame, saved = counting, frame_jobs.render_frame
     try:
         presets.generate("webcam_clipart", a, size="tiny", seed=5, workers=1, progress=False)
     finally:
-        presets._render = saved
+        frame_jobs.render_frame = saved
     assert calls == [victim]
     assert victim.read_bytes() == fb[str(victim.relative_to(a))]
     assert all(p.stat().st_mtime_ns == m for p, m in others.items())
@@ -438,7 +438,7 @@ def test_bad_arguments(tmp_path):
 
 @pytest.mark.slow
 def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, monkeypatch):
-    monkeypatch.setattr(presets, "MIN_FRAMES_PER_WORKER", 1)  # really use two processes
+    monkeypatch.setattr(frame_jobs, "MIN_FRAMES_PER_WORKER", 1)  # really use two processes
     a = presets.generate(
         "webcam_clipart", tmp_path / "a", size="tiny", seed=0, workers=2, progress=False
     )
@@ -540,12 +540,12 @@ def test_readers_read_the_synthetic_layouts(fake_world, tmp_path):
 
 
 def test_a_failing_frame_is_named(monkeypatch, tmp_path):
-    monkeypatch.setattr(presets, "_scene", fake_scene)
+    monkeypatch.setattr(frame_jobs, "scene_of", fake_scene)
 
     def broken(job):
         raise ValueError("boom")
 
-    monkeypatch.setattr(presets, "_render", broken)
+    monkeypatch.setattr(frame_jobs, "render_frame", broken)
     with pytest.raises(RuntimeError, match=r"scene_00/\d{8}_\d{6}\.jpg.*boom"):
         presets.generate("webcam_clipart", tmp_path, size="tiny", workers=1, progress=False)
     assert not list(tmp_path.rglob("*.jpg"))  # nothing half-written

@@ -1,0 +1,195 @@
+"""The ``robotcar`` preset: the 9 Oxford RobotCar traversals of Table I (Sec. IV-B-1).
+
+The 9 traversals of the paper's Table I, at their real instants (the folder names of
+``data_specs/robotcar.json``, UTC, so the reader's hand-made slot table applies), along a
+street driven east and back west (on the right: the renderer's street has right-hand
+traffic, unlike Oxford). Only frames near the 23 viewpoints
+are rendered (a few within +-3 m of each), so ``stereo.timestamps`` lists those frames;
+``gps/ins.csv`` covers the whole drive at 10 Hz. Layout::
+
+    <out>/YYYY-MM-DD-HH-MM-SS/stereo/centre/<unix us>.png   raw Bayer gbrg mosaic
+    <out>/YYYY-MM-DD-HH-MM-SS/stereo.timestamps             <ts_us> <chunk>
+    <out>/YYYY-MM-DD-HH-MM-SS/gps/ins.csv                   real header
+    <out>/models/stereo_narrow_left.txt                     fx fy cx cy + G_camera_image
+    <out>/extrinsics/stereo.txt, extrinsics/ins.txt         0 0 0 0 0 0 (see below)
+    <out>/viewpoints.csv                                    viewpoint,latitude,longitude,yaw_deg
+    <out>/segmentation/<traversal>/stereo/centre/<ts>.png
+
+Camera mounting: the vehicle frame is RobotCar's (x forward, y right, z down) and its
+origin IS the stereo camera (as in the real dataset, whose vehicle frame is centred on
+the Bumblebee), so ``extrinsics/stereo.txt`` is zero; the INS also sits at that origin
+here, so ``extrinsics/ins.txt`` is zero too and ``ins.csv`` gives the camera's sensor
+frame pose directly: ``R_ned = Rz(yaw) Ry(pitch) Rx(roll)``; the image frame (z forward)
+is that times ``G_camera_image`` of ``models/stereo_narrow_left.txt``. Map frame:
+``route.LocalTangentFrame``. ``yaw_deg`` of a viewpoint is the NED yaw, like ins.csv.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from rp_jax.schedule import load_spec
+from rp_jax.sources.synthetic import frame_jobs, layouts
+from rp_jax.sources.synthetic.frame_jobs import (
+    FrameJob,
+    Plan,
+    SceneSpec,
+    frame_seed,
+    seeded_rng,
+    segmentation_path_of,
+)
+from rp_jax.sources.synthetic.route import CameraMount, LocalTangentFrame, Route, camera_pose
+
+__all__ = [
+    "ROBOTCAR_CAMERA_HEIGHT_M",
+    "ROBOTCAR_LOCATION",
+    "plan",
+    "robotcar_traversals",
+]
+
+log = logging.getLogger(__name__)
+
+_SPEC = load_spec("robotcar")
+
+
+def robotcar_traversals() -> list[tuple[str, int]]:
+    """The paper's Table I traversals ``(folder name, slot)`` in slot order."""
+    slots = _SPEC["traversal_slots"]
+    return sorted(((k, v) for k, v in slots.items() if k != "note"), key=lambda kv: kv[1])
+
+
+ROBOTCAR_LOCATION = (51.7520, -1.2577)  # Oxford
+ROBOTCAR_CAMERA_HEIGHT_M = 1.6
+
+
+@dataclasses.dataclass(frozen=True)
+class _RobotcarSize:
+    traversals: int
+    viewpoints: int
+    frames_per_viewpoint: int
+    scale: float  # image size relative to the real 1280x960
+
+
+_ROBOTCAR_SIZES = {
+    "tiny": _RobotcarSize(traversals=2, viewpoints=2, frames_per_viewpoint=2, scale=0.125),
+    "small": _RobotcarSize(traversals=9, viewpoints=8, frames_per_viewpoint=2, scale=0.25),
+    "full": _RobotcarSize(traversals=9, viewpoints=23, frames_per_viewpoint=3, scale=1.0),
+}
+
+
+def plan(out_dir: Path, size: str, seed: int) -> Plan:
+    """The frames of the ``robotcar`` preset and its metadata writer."""
+    spec = _ROBOTCAR_SIZES[size]
+    cam = layouts.ROBOTCAR_STEREO_CENTRE
+    cam = layouts.scale_camera(cam, round(cam.width * spec.scale), round(cam.height * spec.scale))
+    traversals = robotcar_traversals()
+    if spec.traversals < len(traversals):
+        # Morning and afternoon, so the slots far apart are both there.
+        step = (len(traversals) - 1) / max(spec.traversals - 1, 1)
+        traversals = [traversals[round(i * step)] for i in range(spec.traversals)]
+    lat, lon = ROBOTCAR_LOCATION
+    leg = 12.0 * spec.viewpoints + 10.0  # metres per direction
+    scene_spec = SceneSpec(
+        seed=int(seeded_rng(seed, 20).integers(0, 2**31 - 1)),
+        kind="street",
+        length_m=leg + 20.0,
+        latitude=lat,
+        longitude=lon,
+        vegetation=0.45,
+    )
+    scene = frame_jobs.scene_of(scene_spec)
+    # The renderer's street has right-hand traffic (its passing cars use those lanes), so
+    # the car keeps right here, unlike in Oxford.
+    x0 = (scene.length_m - leg) / 2
+    route = Route.out_and_back(
+        x0, x0 + leg, abs(scene.lanes_y["eastbound"]), ROBOTCAR_CAMERA_HEIGHT_M, keep_left=False
+    )
+    frame = LocalTangentFrame(lat, lon)
+    mount = CameraMount()
+    # Viewpoints spread over both legs (skipping the U-turn), alternating direction.
+    v_s = np.linspace(8.0, route.length - 8.0, spec.viewpoints + 2)[1:-1]
+    u_turn = (leg, route.length - leg)
+    v_s = np.array([s if not (u_turn[0] - 6 <= s <= u_turn[1] + 6) else u_turn[1] + 8 for s in v_s])
+    viewpoints = []
+    for v, s in enumerate(v_s):
+        pose = route.pose_at(float(s))
+        vlat, vlon = frame.geodetic(pose.position[0], pose.position[1])
+        viewpoints.append((f"vp{v:02d}", vlat, vlon, math.degrees(pose.yaw)))
+    jobs: list[FrameJob] = []
+    records: dict[str, dict] = {}
+    for tr_idx, (folder, _slot) in enumerate(traversals):
+        start = dt.datetime.strptime(folder, "%Y-%m-%d-%H-%M-%S").replace(tzinfo=dt.UTC)
+        rng = seeded_rng(seed, 21, tr_idx)
+        speed = float(rng.uniform(7.0, 10.0))
+        wander = float(rng.normal(0.0, 0.3))
+        offsets = (
+            np.linspace(-2.5, 2.5, spec.frames_per_viewpoint)
+            if spec.frames_per_viewpoint > 1
+            else np.zeros(1)
+        )
+        stamps = []
+        for v, s_v in enumerate(v_s):
+            for f_idx, off in enumerate(offsets):
+                s = float(s_v + off + rng.uniform(-0.4, 0.4))
+                pose = route.pose_at(s, lateral=wander)
+                R, t = camera_pose(pose, mount)
+                when = start + dt.timedelta(seconds=s / speed)
+                ts = layouts.unix_microseconds(when)
+                stamps.append(ts)
+                path = out_dir / folder / "stereo" / "centre" / f"{ts}.png"
+                jobs.append(
+                    FrameJob(
+                        scene=scene_spec,
+                        K=cam.K,
+                        R=R,
+                        t=t,
+                        width=cam.width,
+                        height=cam.height,
+                        distortion=np.zeros(4),
+                        when=when,
+                        frame_seed=frame_seed(seed, 22, tr_idx, v, f_idx),
+                        image_path=path,
+                        bayer="gbrg",
+                        segmentation_path=segmentation_path_of(out_dir, path),
+                    )
+                )
+        # INS at 10 Hz over the whole drive.
+        ins_rows = []
+        duration = route.length / speed
+        for k in range(int(duration * 10) + 1):
+            s = min(k / 10 * speed, route.length)
+            pose = route.pose_at(s, lateral=wander)
+            heading_vec = np.array([math.cos(pose.heading), math.sin(pose.heading), 0.0])
+            velocity = heading_vec * speed if s < route.length else np.zeros(3)
+            when = start + dt.timedelta(seconds=k / 10)
+            ins_rows.append(frame.ins_fields(pose, layouts.unix_microseconds(when), velocity))
+        records[folder] = {"stamps": sorted(stamps), "ins": ins_rows}
+
+    def finalize():
+        layouts.write_text_atomic(
+            out_dir / "models" / "stereo_narrow_left.txt", layouts.format_robotcar_camera_model(cam)
+        )
+        for sensor in ("stereo", "ins"):
+            layouts.write_text_atomic(
+                out_dir / "extrinsics" / f"{sensor}.txt",
+                layouts.format_robotcar_extrinsics([0, 0, 0, 0, 0, 0]),
+            )
+        layouts.write_text_atomic(
+            out_dir / "viewpoints.csv", layouts.format_viewpoints_csv(viewpoints)
+        )
+        for folder, rec in records.items():
+            layouts.write_text_atomic(
+                out_dir / folder / "stereo.timestamps",
+                layouts.format_stereo_timestamps(rec["stamps"]),
+            )
+            layouts.write_text_atomic(
+                out_dir / folder / "gps" / "ins.csv", layouts.format_ins_csv(rec["ins"])
+            )
+
+    return Plan("robotcar", out_dir, jobs, finalize)
