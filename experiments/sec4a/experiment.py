@@ -129,8 +129,10 @@ def run(
     config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
 ) -> dict:
     """Run one experiment end to end; returns the metrics written to ``metrics.json``."""
+    from experiments.sec4a.config import validate
     from rp_jax import plots, predict, train
 
+    validate(config, workdir)  # before the dataset is built: a bad field fails in a second
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     schedule = schedule_lib.preset(config.schedule)
@@ -235,10 +237,8 @@ def run(
 def _image_loader(config):
     """(viewpoint, image_id) -> RGB of the dataset's images, for drawing keypoints; None if
     unreadable."""
-    import importlib
-
     from rp_jax.datasets import builder as builder_lib
-    from rp_jax.datasets import loading
+    from rp_jax.datasets import loading, registry
 
     try:
         if config.data_config == "real":
@@ -251,16 +251,16 @@ def _image_loader(config):
             root = builder_lib.synthetic_root(
                 data_dir.absolute(), config.dataset, cfg.size, cfg.seed
             )
-        captures = builder_lib.read_captures(config.dataset, root)
+        dataset = registry.get(config.dataset)
+        captures = dataset.read(root)
     except (OSError, ValueError) as e:  # figures then say "image not found"
         log.warning("cannot index the %s images for figures: %s", config.dataset, e)
         return None
     index = {(c.viewpoint, c.image_id): c for c in captures}
-    reader = importlib.import_module(f"rp_jax.sources.{config.dataset}")
 
     def load(viewpoint: str, image_id: str):
         capture = index.get((viewpoint, image_id))
-        return None if capture is None else reader.load_image(capture)
+        return None if capture is None else dataset.load_image(capture)
 
     return load
 

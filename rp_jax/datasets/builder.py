@@ -27,17 +27,15 @@ import json
 import logging
 import os
 import types
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import cv2
 import numpy as np
 import tensorflow_datasets as tfds
 from etils import epath
 from tensorflow_datasets.core import utils as tfds_utils
 
-from rp_jax import categories
-from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES, registry
 from rp_jax.datasets import features as features_lib
 from rp_jax.groundtruth import (
     GroundTruthConfig,
@@ -45,8 +43,7 @@ from rp_jax.groundtruth import (
     label_viewpoint,
     label_viewpoints,
 )
-from rp_jax.schedule import load_spec, preset
-from rp_jax.sources import cmu_seasons, robotcar, webcam_clipart
+from rp_jax.schedule import preset
 from rp_jax.sources.capture import Capture
 from rp_jax.sources.layout import LayoutError
 
@@ -57,11 +54,7 @@ __all__ = [
     "RepeatabilityConfig",
     "ViewpointJob",
     "builder_configs",
-    "ground_truth_config",
     "label_viewpoint_examples",
-    "layout_viewpoints",
-    "read_captures",
-    "split_viewpoints",
     "synthetic_root",
     "viewpoint_jobs",
 ]
@@ -137,233 +130,6 @@ def builder_configs(records_per_image: int = 120) -> list[RepeatabilityConfig]:
     ]
 
 
-def ground_truth_config(name: str, max_keypoints: int) -> GroundTruthConfig:
-    """How a dataset's interest points are verified (Sec. IV-A-1, IV-B-1).
-
-    Webcam Clip Art: static camera, an inlier moves < 5 px. CMU Seasons and RobotCar:
-    known poses (epipolar + triangulation checks).
-    """
-    if name == "webcam_clipart":
-        threshold = float(load_spec(name).get("inlier_pixel_threshold", 5.0))
-        return GroundTruthConfig(
-            verification="static", static_pixel_threshold=threshold, max_keypoints=max_keypoints
-        )
-    if name in ("cmu_seasons", "robotcar"):
-        return GroundTruthConfig(verification="pose", max_keypoints=max_keypoints)
-    raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
-
-
-# ----------------------------------------------------------------------------- pixels
-
-
-def load_category(capture: Capture) -> np.ndarray | None:
-    """The capture's category map (uint8 [H, W], 255 unlabelled) as stored, or None."""
-    path = capture.meta.get("segmentation_path")
-    if path is None:
-        return None
-    cmap = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if cmap is None:
-        log.warning(
-            "unreadable category map %s for %s; categories unknown", path, capture.image_path
-        )
-        return None
-    if cmap.ndim == 3:
-        cmap = cmap[..., 0]
-    return cmap.astype(np.uint8)
-
-
-def _cmu_load_category(capture: Capture) -> np.ndarray | None:
-    """CMU category map undistorted like ``cmu_seasons.load_image`` (nearest neighbour)."""
-    cmap = load_category(capture)
-    cam = capture.camera
-    if cmap is None or not (cam.distortion.size and np.any(cam.distortion != 0)):
-        return cmap
-    map_x, map_y = cv2.initUndistortRectifyMap(
-        cam.K, cam.distortion, None, cam.K, (cmap.shape[1], cmap.shape[0]), cv2.CV_32FC1
-    )
-    return cv2.remap(
-        cmap,
-        map_x,
-        map_y,
-        cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=categories.UNLABELLED_PIXEL,
-    )
-
-
-def _robotcar_load_category(capture: Capture) -> np.ndarray | None:
-    """RobotCar category map, remapped with the distortion LUT when ``load_image`` is."""
-    cmap = load_category(capture)
-    lut_path = capture.meta.get("distortion_lut")
-    if cmap is None or lut_path is None:
-        return cmap
-    lut = robotcar._load_lut(Path(lut_path), cmap.shape[:2])  # the reader's own LUT cache
-    if lut is None:
-        return cmap
-    return cv2.remap(
-        cmap,
-        lut[0],
-        lut[1],
-        cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=categories.UNLABELLED_PIXEL,
-    )
-
-
-def _cmu_camera_matrix(capture: Capture) -> np.ndarray:
-    """K of the undistorted pixels ``cmu_seasons.load_image`` returns."""
-    return cmu_seasons.undistorted_camera(capture).K
-
-
-# Module-level functions only: a job is pickled to worker processes (or Beam workers).
-_LOAD_IMAGE = {
-    "webcam_clipart": webcam_clipart.load_image,
-    "cmu_seasons": cmu_seasons.load_image,
-    "robotcar": robotcar.load_image,
-}
-_LOAD_CATEGORY = {
-    "webcam_clipart": load_category,
-    "cmu_seasons": _cmu_load_category,
-    "robotcar": _robotcar_load_category,
-}
-_CAMERA_OF = {"webcam_clipart": None, "cmu_seasons": _cmu_camera_matrix, "robotcar": None}
-
-
-# ----------------------------------------------------------------------------- reading
-
-
-def _cmu_slices(root: Path, splits: Mapping[str, Sequence[int]]) -> list[int]:
-    wanted = sorted({int(n) for ns in splits.values() for n in ns})
-    if not root.is_dir():
-        return wanted  # the reader raises LayoutError naming what it expected
-    found = cmu_seasons.find_slices(root)
-    present = [n for n in wanted if n in found]
-    if not present:
-        return wanted  # ditto, listing the slices found
-    missing = [n for n in wanted if n not in found]
-    if missing:
-        log.info("%s: slices %s absent (a reduced layout); reading %s", root, missing, present)
-    return present
-
-
-def read_captures(name: str, root: Path) -> list[Capture]:
-    """Read a dataset layout with its reader; captures carry (cycle, slot) and viewpoint.
-
-    Raises:
-      LayoutError: ``root`` is not in the expected layout (the message lists the paths).
-    """
-    root = Path(root)
-    if name == "webcam_clipart":
-        return webcam_clipart.read(root)
-    if name == "cmu_seasons":
-        splits = load_spec(name)["splits"]
-        return cmu_seasons.read(root, slices=_cmu_slices(root, splits))
-    if name == "robotcar":
-        return robotcar.read(root)
-    raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
-
-
-def _webcam_splits(source: str, scenes: Sequence[str]) -> dict[str, list[str]]:
-    spec = load_spec("webcam_clipart")["splits"]
-    lists = spec.get(source) or {}
-    if lists.get("train") is None or lists.get("test") is None:
-        # The paper does not name its scenes: hold out the last scene (7 train / 1 test).
-        ordered = sorted(scenes)
-        held_out = ordered[-1:] if len(ordered) > 1 else []
-        log.warning(
-            "data_specs/webcam_clipart.json names no %s scenes; test = %s, train = the other %d",
-            source,
-            held_out,
-            len(ordered) - len(held_out),
-        )
-        return {"train": [s for s in ordered if s not in held_out], "test": held_out}
-    known = set(lists["train"]) | set(lists["test"])
-    unknown = sorted(set(scenes) - known)
-    if unknown:
-        raise ValueError(
-            f"scenes {unknown} are in no split of data_specs/webcam_clipart.json "
-            f"(splits.{source}: train {lists['train']}, test {lists['test']})"
-        )
-    return {split: [s for s in lists[split] if s in scenes] for split in ("train", "test")}
-
-
-def _slice_of(viewpoint: str) -> int:
-    head = viewpoint.split("/", 1)[0]
-    if not head.startswith("slice") or not head[5:].isdigit():
-        raise ValueError(f"CMU viewpoint id {viewpoint!r} is not 'slice<N>/...'")
-    return int(head[5:])
-
-
-def layout_viewpoints(name: str, root: Path) -> list[str] | None:
-    """What the layout holds before the reader drops anything, as ``split_viewpoints`` reads
-    it: Webcam Clip Art's scene folders, CMU Seasons' ``slice<N>/`` folders with database
-    images (None for RobotCar, whose viewpoints exist only after pose grouping)."""
-    root = Path(root)
-    if name == "webcam_clipart":
-        return sorted(webcam_clipart.find_scenes(root))
-    if name == "cmu_seasons":
-        wanted = _cmu_slices(root, load_spec(name)["splits"])
-        found = cmu_seasons.find_slices(root) if root.is_dir() else {}
-        return [
-            f"slice{n}/"
-            for n in wanted
-            if n in found
-            and (found[n] / "database").is_dir()
-            and any(p.is_file() for p in (found[n] / "database").iterdir())
-        ]
-    return None
-
-
-def split_viewpoints(
-    name: str,
-    source: str,
-    viewpoints: Iterable[str],
-    *,
-    found: Iterable[str] | None = None,
-) -> dict[str, list[str]]:
-    """Viewpoint ids of each split, as ``data_specs/<name>.json`` says (Sec. IV-A-1).
-
-    Webcam Clip Art: listed scenes (7 train / 1 test; for a real layout with no list, the
-    last scene in sorted order is the test scene). CMU Seasons: slices 6, 7, 9 train and
-    8 test. RobotCar: all train. Empty splits are dropped.
-
-    Args:
-      name, source: the dataset and ``"synthetic"`` or ``"real"``.
-      viewpoints: the viewpoints of the captures the reader kept.
-      found: the viewpoints the layout held before the reader dropped any
-        (``layout_viewpoints``). Given, the splits are chosen on them (a scene whose images
-        were all dropped is not replaced by another held-out scene), and a split that had
-        viewpoints there but keeps none raises ``LayoutError``.
-    """
-    viewpoints = sorted(set(viewpoints))
-    if name == "webcam_clipart":
-        chosen = _webcam_splits(source, sorted(set(found)) if found is not None else viewpoints)
-        kept = set(viewpoints)
-        out = {split: [v for v in vps if v in kept] for split, vps in chosen.items()}
-    elif name == "cmu_seasons":
-        spec = load_spec(name)["splits"]
-        out = {
-            split: [v for v in viewpoints if _slice_of(v) in set(slices)]
-            for split, slices in spec.items()
-        }
-    elif name == "robotcar":
-        out = {"train": viewpoints}
-    else:
-        raise ValueError(f"unknown dataset {name!r}; known: {', '.join(DATASET_NAMES)}")
-    if found is not None:
-        expected = split_viewpoints(name, source, found)
-        lost = {split: vps for split, vps in expected.items() if not out.get(split)}
-        if lost:
-            what = "; ".join(f"{split!r} ({', '.join(vps)})" for split, vps in lost.items())
-            raise LayoutError(
-                f"{name}: split {what} lost all its viewpoints: the reader dropped every image "
-                "of them (the read summary logged above names the files and why: no capture "
-                "time, unreadable, no pose, outside every viewpoint or timestamp); fix those "
-                f"files, or list the splits in data_specs/{name}.json"
-            )
-    return {split: vps for split, vps in out.items() if vps}
-
-
 # ----------------------------------------------------------------------------- labelling
 
 
@@ -391,13 +157,14 @@ class ViewpointJob:
 
     def label_kwargs(self) -> dict:
         """Keyword arguments of ``groundtruth.label_viewpoint(s)`` for this dataset."""
+        dataset = registry.get(self.dataset)
         return {
-            "load_image": _LOAD_IMAGE[self.dataset],
+            "load_image": dataset.load_image,
             "num_timestamps": self.num_timestamps,
             "config": self.config,
             "cache_dir": self.cache_dir,
-            "camera_of": _CAMERA_OF[self.dataset],
-            "load_category": _LOAD_CATEGORY[self.dataset],
+            "camera_of": dataset.camera_of,
+            "load_category": dataset.load_category,
         }
 
 
@@ -658,8 +425,9 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
     def _split_generators(self, dl_manager):
         cfg = self.builder_config
         root = self.layout_root(dl_manager)
+        dataset = registry.get(self.DATASET)
         try:
-            captures = read_captures(self.DATASET, root)
+            captures = dataset.read(root)
         except LayoutError as err:
             if cfg.source == "real":
                 raise LayoutError(f"{err}\n\n{self.MANUAL_DOWNLOAD_INSTRUCTIONS}") from err
@@ -669,9 +437,9 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
                 f"{root}: the {self.DATASET} reader found no usable capture "
                 "(see the read summary logged above)"
             )
-        splits = split_viewpoints(self.DATASET, cfg.source, {c.viewpoint for c in captures},
-                                  found=layout_viewpoints(self.DATASET, root))
-        gt_config = ground_truth_config(self.DATASET, cfg.max_keypoints)
+        splits = dataset.splits(cfg.source, {c.viewpoint for c in captures},
+                                found=dataset.layout_viewpoints(root))
+        gt_config = dataset.ground_truth(cfg.max_keypoints)
         cache = self.cache_dir(dl_manager)
         log.info("%s/%s: %s", self.DATASET, cfg.name, {s: len(v) for s, v in splits.items()})
         return {

@@ -72,7 +72,7 @@ def layout_fingerprint(root: str | os.PathLike) -> dict:
 
 def labelling_fingerprint(builder) -> dict:
     """What turns the layout into records: builder version and config, ground truth, spec."""
-    from rp_jax.datasets.builder import ground_truth_config
+    from rp_jax.datasets import registry
     from rp_jax.schedule import load_spec
 
     cfg = builder.builder_config
@@ -85,8 +85,8 @@ def labelling_fingerprint(builder) -> dict:
             "records_per_image": cfg.records_per_image,
             "seed": cfg.seed,
         },
-        "ground_truth": dataclasses.asdict(ground_truth_config(builder.DATASET,
-                                                               cfg.max_keypoints)),
+        "ground_truth": dataclasses.asdict(
+            registry.get(builder.DATASET).ground_truth(cfg.max_keypoints)),
         "data_spec": load_spec(builder.DATASET),
     }
     text = json.dumps(payload, sort_keys=True, default=str)

@@ -51,9 +51,11 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 from tqdm import tqdm
 
+from rp_jax import categories
 from rp_jax.rotations import quaternion_to_rotation
 from rp_jax.schedule import TimeSchedule, load_spec, preset
 from rp_jax.sources import images, viewpoints
@@ -73,6 +75,8 @@ __all__ = [
     "QUERY_POSES_DIR",
     "find_slices",
     "is_rectified",
+    "camera_matrix",
+    "load_category",
     "load_image",
     "parse_image_name",
     "pose_from_ground_truth",
@@ -455,3 +459,21 @@ def load_image(capture: Capture) -> np.ndarray | None:
         )
         return None
     return images.undistort_image(image, capture.camera)
+
+
+def load_category(capture: Capture) -> np.ndarray | None:
+    """The category map undistorted like ``load_image`` (nearest neighbour), or None."""
+    cmap = images.read_category_map(capture)
+    cam = capture.camera
+    if cmap is None or not (cam.distortion.size and np.any(cam.distortion != 0)):
+        return cmap
+    map_x, map_y = cv2.initUndistortRectifyMap(
+        cam.K, cam.distortion, None, cam.K, (cmap.shape[1], cmap.shape[0]), cv2.CV_32FC1
+    )
+    return cv2.remap(cmap, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=categories.UNLABELLED_PIXEL)
+
+
+def camera_matrix(capture: Capture) -> np.ndarray:
+    """K of the undistorted pixels ``load_image`` returns."""
+    return undistorted_camera(capture).K

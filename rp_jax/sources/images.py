@@ -32,6 +32,7 @@ __all__ = [
     "pinhole_guess",
     "probe_size",
     "read_bayer_rgb",
+    "read_category_map",
     "read_rgb",
     "undistort_image",
     "undistort_points",
@@ -100,6 +101,25 @@ def read_rgb(path: Path) -> np.ndarray | None:
     if image.shape[2] == 4:
         return cv2.cvtColor(image, cv2.COLOR_BGRA2RGB)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def read_category_map(capture: Capture) -> np.ndarray | None:
+    """The capture's category map as stored (uint8 [H, W], 255 unlabelled), or None.
+
+    None, with a warning, when the capture has no ``segmentation_path`` or the file cannot
+    be read (the categories of that image are then unknown).
+    """
+    path = capture.meta.get("segmentation_path")
+    if path is None:
+        return None
+    cmap = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if cmap is None:
+        log.warning("unreadable category map %s for %s; categories unknown", path,
+                    capture.image_path)
+        return None
+    if cmap.ndim == 3:
+        cmap = cmap[..., 0]
+    return cmap.astype(np.uint8)
 
 
 def demosaic(raw: np.ndarray, pattern: str) -> np.ndarray:

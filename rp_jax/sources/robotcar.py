@@ -75,6 +75,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 from tqdm import tqdm
 
+from rp_jax import categories
 from rp_jax.schedule import DATA_SPECS_DIR, TimeSchedule, load_spec, preset
 from rp_jax.sources import images, viewpoints
 from rp_jax.sources.capture import Camera, Capture
@@ -98,6 +99,7 @@ __all__ = [
     "euler_to_rotation",
     "find_traversals",
     "interpolate_poses",
+    "load_category",
     "load_image",
     "read",
     "read_camera_extrinsics",
@@ -626,6 +628,19 @@ def load_image(capture: Capture) -> np.ndarray | None:
     return cv2.remap(
         image, lut[0], lut[1], interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT
     )
+
+
+def load_category(capture: Capture) -> np.ndarray | None:
+    """The category map, remapped with the distortion LUT when ``load_image`` is, or None."""
+    cmap = images.read_category_map(capture)
+    lut_path = capture.meta.get("distortion_lut")
+    if cmap is None or lut_path is None:
+        return cmap
+    lut = _load_lut(Path(lut_path), cmap.shape[:2])
+    if lut is None:
+        return cmap
+    return cv2.remap(cmap, lut[0], lut[1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=categories.UNLABELLED_PIXEL)
 
 
 _LUT_CACHE: dict[tuple[Path, tuple[int, int]], tuple[np.ndarray, np.ndarray] | None] = {}

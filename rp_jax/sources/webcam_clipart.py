@@ -77,6 +77,7 @@ __all__ = [
     "SunCheck",
     "check_sun_angles",
     "find_scenes",
+    "load_category",
     "load_image",
     "parse_name_time",
     "read",
@@ -518,3 +519,8 @@ def _check_one_size_per_scene(captures: Sequence[Capture], scenes: Mapping[str, 
 def load_image(capture: Capture) -> np.ndarray | None:
     """The capture's pixels, RGB uint8 (H, W, 3), or None with a warning if unreadable."""
     return images.read_rgb(capture.image_path)
+
+
+def load_category(capture: Capture) -> np.ndarray | None:
+    """The category map on the pixels ``load_image`` returns (as stored), or None."""
+    return images.read_category_map(capture)

@@ -18,7 +18,7 @@ import tensorflow_datasets as tfds
 
 from rp_jax.datasets import builder as builder_lib
 from rp_jax.datasets import features as features_lib
-from rp_jax.datasets import input_pipeline, loading
+from rp_jax.datasets import input_pipeline, loading, registry
 from rp_jax.schedule import load_spec, preset
 from rp_jax.sources.layout import LayoutError
 from tests.datasets._tiny import (
@@ -209,15 +209,15 @@ def test_synthetic_root_default_location(tmp_path):
     )
 
 
-def test_split_viewpoints():
-    cmu = builder_lib.split_viewpoints(
-        "cmu_seasons", "synthetic", ["slice6/vp0000", "slice8/vp0001", "slice9/vp0000"]
+def test_splits_of_each_dataset():
+    cmu = registry.get("cmu_seasons").splits(
+        "synthetic", ["slice6/vp0000", "slice8/vp0001", "slice9/vp0000"]
     )
     assert cmu == {"train": ["slice6/vp0000", "slice9/vp0000"], "test": ["slice8/vp0001"]}
-    assert builder_lib.split_viewpoints("robotcar", "real", ["b", "a"]) == {"train": ["a", "b"]}
+    assert registry.get("robotcar").splits("real", ["b", "a"]) == {"train": ["a", "b"]}
     with pytest.raises(ValueError, match="scene_99"):
-        builder_lib.split_viewpoints("webcam_clipart", "synthetic", ["scene_00", "scene_99"])
-    real = builder_lib.split_viewpoints("webcam_clipart", "real", ["c", "a", "b"])
+        registry.get("webcam_clipart").splits("synthetic", ["scene_00", "scene_99"])
+    real = registry.get("webcam_clipart").splits("real", ["c", "a", "b"])
     assert real == {"train": ["a", "b"], "test": ["c"]}
 
 
@@ -231,16 +231,16 @@ def test_a_split_that_loses_its_viewpoints_is_an_error(tmp_path):
         for n in names:
             (tmp_path / scene).mkdir(exist_ok=True)
             cv2.imwrite(str(tmp_path / scene / f"{n}.jpg"), np.full((8, 8, 3), 99, np.uint8))
-    found = builder_lib.layout_viewpoints("webcam_clipart", tmp_path)
+    found = registry.get("webcam_clipart").layout_viewpoints(tmp_path)
     assert found == ["a", "b", "c"]
     with pytest.raises(LayoutError, match=r"split 'test' \(c\) lost all its viewpoints"):
-        builder_lib.split_viewpoints("webcam_clipart", "real", ["a", "b"], found=found)
+        registry.get("webcam_clipart").splits("real", ["a", "b"], found=found)
     # A training scene lost (counted and named by the reader) leaves a working split.
-    assert builder_lib.split_viewpoints("webcam_clipart", "real", ["a", "c"],
-                                        found=found) == {"train": ["a"], "test": ["c"]}
+    assert registry.get("webcam_clipart").splits("real", ["a", "c"],
+                                                 found=found) == {"train": ["a"], "test": ["c"]}
     cmu_found = ["slice6/", "slice8/"]
     with pytest.raises(LayoutError, match=r"split 'test' \(slice8/\) lost"):
-        builder_lib.split_viewpoints("cmu_seasons", "real", ["slice6/vp0000"], found=cmu_found)
+        registry.get("cmu_seasons").splits("real", ["slice6/vp0000"], found=cmu_found)
 
 
 def test_records_to_examples_refuses_other_descriptors():
@@ -295,10 +295,9 @@ def test_one_viewpoint_job_is_picklable_and_gives_the_built_records(webcam):
     import pickle
 
     root = Path(webcam._data_dir_root)
-    captures = builder_lib.read_captures(
-        "webcam_clipart", root.parent / "synthetic" / "webcam_clipart_tiny"
-    )
-    config = builder_lib.ground_truth_config("webcam_clipart", webcam.builder_config.max_keypoints)
+    dataset = registry.get("webcam_clipart")
+    captures = dataset.read(root.parent / "synthetic" / "webcam_clipart_tiny")
+    config = dataset.ground_truth(webcam.builder_config.max_keypoints)
     cache = root / "downloads" / "groundtruth" / "webcam_clipart" / TINY
     (job,) = builder_lib.viewpoint_jobs(
         "webcam_clipart", captures, ["scene_07"], config=config, cache_dir=cache
@@ -366,3 +365,15 @@ def test_select_records_keeps_a_seeded_subset_per_image():
     assert list(select_records(records, 4, seed=0)["x"]) == list(picked["x"])  # deterministic
     assert list(select_records(records, 4, seed=1)["x"]) != list(picked["x"])
     assert len(select_records(records, 0)["x"]) == 13
+
+
+def test_every_dataset_has_one_object_and_unknown_names_are_named():
+    from rp_jax.datasets import DATASET_NAMES
+
+    assert tuple(registry.DATASETS) == DATASET_NAMES
+    assert registry.get("webcam_clipart").ground_truth(7).verification == "static"
+    assert registry.get("webcam_clipart").ground_truth(7).static_pixel_threshold == 5.0
+    assert registry.get("cmu_seasons").ground_truth(7).verification == "pose"
+    assert registry.get("robotcar").ground_truth(7).max_keypoints == 7
+    with pytest.raises(ValueError, match="unknown dataset 'kitti'; known: webcam_clipart"):
+        registry.get("kitti")

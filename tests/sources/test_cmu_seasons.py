@@ -136,6 +136,27 @@ def test_load_image_undistorts(tmp_path):
     assert cap.meta["undistorted_camera"].model == "PINHOLE"
 
 
+def test_category_map_is_undistorted_like_the_image(tmp_path):
+    """The category of a keypoint is read at the pixel it was detected on, in the undistorted
+    image: the map must move with the pixels (nearest neighbour, unlabelled outside)."""
+    import dataclasses
+
+    entries, _, _ = _layout(tmp_path)
+    cap = next(c for c in cmu_seasons.read(tmp_path) if c.image_path.name == entries[0][0])
+    blocks = (np.arange(48)[:, None] // 8 * 8 + np.arange(64)[None, :] // 8).astype(np.uint8)
+    cv2.imwrite(str(cap.image_path.with_suffix(".png")), np.repeat(blocks[..., None], 3, -1))
+    cv2.imwrite(str(tmp_path / "seg.png"), blocks)
+    cap = dataclasses.replace(cap, image_path=cap.image_path.with_suffix(".png"),
+                              meta={**cap.meta, "segmentation_path": tmp_path / "seg.png"})
+    image = cmu_seasons.load_image(cap)[..., 0]
+    cmap = cmu_seasons.load_category(cap)
+    assert cmap.shape == (48, 64) and cmap.dtype == np.uint8
+    labelled = cmap != 255
+    assert (cmap[labelled] == image[labelled]).mean() > 0.9  # same pixels, bar block edges
+    assert (cmap != blocks).mean() > 0.05  # it did move with the distortion
+    np.testing.assert_array_equal(cmu_seasons.camera_matrix(cap), cap.camera.K)
+
+
 def test_corrupt_image_is_skipped_and_counted(tmp_path, caplog):
     entries, _, _ = _layout(tmp_path)
     (tmp_path / "slice7" / "database" / entries[0][0]).write_bytes(b"")
