@@ -32,12 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from experiments.benchmark.stages import (
-    PROTOCOL_PREFIX,
-    SIZES,
-    pairwise_ratio,
-    summarize_samples,
-)
+from experiments.benchmark.config import PROTOCOL_PREFIX, SIZES
+from experiments.benchmark.stats import pairwise_ratio, summarize_samples
 
 __all__ = [
     "LocalizationProblem",
@@ -321,7 +317,8 @@ def _run_summarize_worker(
     num_points: int, size_name: str, repeats: int, run_kcover: bool, timeout_s: float
 ) -> tuple[list[dict], str | None]:
     """Run one ``worker.py summarize`` process; returns (its messages, why it stopped early)."""
-    from experiments.benchmark.stages import VARIANTS, worker_env
+    from experiments.benchmark.config import VARIANTS
+    from experiments.benchmark.orchestration import worker_env
 
     proc = subprocess.Popen(
         [

@@ -33,7 +33,7 @@ import traceback
 
 
 def _send(payload: dict) -> None:
-    from experiments.benchmark.stages import PROTOCOL_PREFIX
+    from experiments.benchmark.config import PROTOCOL_PREFIX
 
     sys.stdout.write(PROTOCOL_PREFIX + json.dumps(payload) + "\n")
     sys.stdout.flush()
@@ -45,9 +45,10 @@ def _summarize(argv: list[str]) -> int:
         sys.stderr.write(__doc__)
         return 2
     try:
-        from experiments.benchmark import mapsum_stages, stages
+        from experiments.benchmark import mapsum_stages
+        from experiments.benchmark.config import SIZES
 
-        size = stages.SIZES[argv[1]]
+        size = SIZES[argv[1]]
         for msg in mapsum_stages.summarize_worker(int(argv[0]), size, int(argv[2]), argv[3] == "1"):
             _send(msg)
     except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
@@ -65,20 +66,24 @@ def main(argv: list[str]) -> int:
         return 2
     stage, what, size_name = argv
     try:
-        from experiments.benchmark import stages
+        from experiments.benchmark.config import SIZES, VARIANTS
 
-        size = stages.SIZES[size_name]
+        size = SIZES[size_name]
         if stage == "groundtruth":
-            _send(stages.groundtruth_once(int(what), size))
+            from experiments.benchmark.groundtruth_stage import groundtruth_once
+
+            _send(groundtruth_once(int(what), size))
             return 0
-        variant = stages.VARIANTS[what]
+        variant = VARIANTS[what]
         if variant.impl == "jax":
             import jax
 
             n = int(os.environ.get("RP_BENCH_NUM_DEVICES", "1"))
             if n > 1:
                 jax.config.update("jax_num_cpu_devices", n)
-        bench = stages.make_bench(stage, variant, size)
+        from experiments.benchmark.model_benches import make_bench
+
+        bench = make_bench(stage, variant, size)
         _send({"ready": bench.setup()})
     except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
         traceback.print_exc()
