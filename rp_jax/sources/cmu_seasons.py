@@ -2,7 +2,7 @@
 
 The paper trains on slices 6, 7, 9 and tests on slice 8, with T = 12 dates per year
 (Mar 04 ... Dec 21) and M = 1 year, and groups "the images seeing the same viewpoint using
-available ground truth camera poses" (``viewpoints.group_by_pose``).
+available ground truth camera poses" (``group_viewpoints.group_by_pose``).
 
 Layout read (see ``DATA_FORMATS.md``)::
 
@@ -58,7 +58,7 @@ from tqdm import tqdm
 from rp_jax import categories
 from rp_jax.rotations import quaternion_to_rotation
 from rp_jax.schedule import TimeSchedule, load_spec, preset
-from rp_jax.sources import images, viewpoints
+from rp_jax.sources import group_viewpoints, images
 from rp_jax.sources.capture import Camera, Capture
 from rp_jax.sources.layout import (
     CycleRule,
@@ -350,7 +350,7 @@ def read(
       include_query: also read query images that have a ground-truth pose
         (``read_query_ground_truth``: ``slice{N}/camera-poses/*.txt`` in the release).
       max_distance, max_angle_deg, min_group_size: viewpoint grouping
-        (``viewpoints.group_by_pose``), per slice, on the ground-truth poses.
+        (``group_viewpoints.group_by_pose``), per slice, on the ground-truth poses.
       cycle_rule: see ``layout``; ``"session_rank"`` gives the paper's M = 1.
 
     Returns:
@@ -389,9 +389,9 @@ def read(
         if not caps:
             continue
         caps.sort(key=lambda c: (c.time, c.image_id))
-        labels = viewpoints.group_by_pose(
+        labels = group_viewpoints.group_by_pose(
             np.stack([c.center for c in caps]),
-            np.stack([viewpoints.viewing_direction(c.R) for c in caps]),
+            np.stack([group_viewpoints.viewing_direction(c.R) for c in caps]),
             max_distance=max_distance,
             max_angle_deg=max_angle_deg,
             min_size=min_group_size,

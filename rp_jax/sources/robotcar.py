@@ -2,7 +2,7 @@
 
 The paper uses the 9 traversals of its Table I (T = 9 hourly timestamps 9:00-17:00, M = 1)
 and 23 hand-picked viewpoints given by latitude/longitude and vehicle yaw; an image belongs
-to a viewpoint when it lies within 5 m and 45 deg of yaw (``viewpoints.assign_to_listed``).
+to a viewpoint when it lies within 5 m and 45 deg of yaw (``group_viewpoints.assign_to_listed``).
 
 Layout read (see ``DATA_FORMATS.md``)::
 
@@ -77,7 +77,7 @@ from tqdm import tqdm
 
 from rp_jax import categories
 from rp_jax.schedule import DATA_SPECS_DIR, TimeSchedule, load_spec, preset
-from rp_jax.sources import images, viewpoints
+from rp_jax.sources import group_viewpoints, images
 from rp_jax.sources.capture import Camera, Capture
 from rp_jax.sources.layout import (
     CycleRule,
@@ -360,19 +360,19 @@ def _pose_file(root: Path, traversal: Path, pose_source: str) -> Path | None:
     return next((p for p in order if p.is_file()), None)
 
 
-def _viewpoint_list(root: Path, option) -> list[viewpoints.ListedViewpoint] | None:
+def _viewpoint_list(root: Path, option) -> list[group_viewpoints.ListedViewpoint] | None:
     if option is not None and not isinstance(option, (str, Path)):
         return list(option)
     if option is not None:
-        return viewpoints.read_viewpoint_list(Path(option))
+        return group_viewpoints.read_viewpoint_list(Path(option))
     if (root / "viewpoints.csv").is_file():
-        return viewpoints.read_viewpoint_list(root / "viewpoints.csv")
+        return group_viewpoints.read_viewpoint_list(root / "viewpoints.csv")
     spec_csv = load_spec(SPEC_NAME).get("viewpoints_csv")
     if spec_csv:
         path = Path(spec_csv)
         path = path if path.is_absolute() else DATA_SPECS_DIR / path
         if path.is_file():
-            return viewpoints.read_viewpoint_list(path)
+            return group_viewpoints.read_viewpoint_list(path)
         log.warning("data_specs/robotcar.json names %s, which does not exist", path)
     return None
 
@@ -395,7 +395,7 @@ def read(
     root: Path,
     *,
     schedule: TimeSchedule | None = None,
-    viewpoint_list: Path | Sequence[viewpoints.ListedViewpoint] | None = None,
+    viewpoint_list: Path | Sequence[group_viewpoints.ListedViewpoint] | None = None,
     traversals: Sequence[str] | None = None,
     models_dir: Path | None = None,
     extrinsics_dir: Path | None = None,
@@ -415,7 +415,7 @@ def read(
       viewpoint_list: a ``viewpoint,latitude,longitude,yaw_deg`` CSV or a list of
         ``ListedViewpoint``; default ``<root>/viewpoints.csv``, then the CSV named by
         ``viewpoints_csv`` in ``data_specs/robotcar.json``. With none, images are grouped
-        by pose (``viewpoints.group_by_pose``, radius_m and max_yaw_deg) with a warning.
+        by pose (``group_viewpoints.group_by_pose``, radius_m and max_yaw_deg) with a warning.
       traversals: only these traversal folder names.
       models_dir, extrinsics_dir: the SDK folders; default ``<root>/models`` and
         ``<root>/extrinsics`` (for a single-traversal root, its parent's).
@@ -583,7 +583,7 @@ def _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts) -> list[Cap
             raise LayoutError(
                 "the pose file has no latitude/longitude columns; a viewpoint list needs them"
             )
-        labels = viewpoints.assign_to_listed(
+        labels = group_viewpoints.assign_to_listed(
             lat,
             np.array([p[2] for p in posed]),
             np.array([p[3] for p in posed]),
@@ -595,9 +595,9 @@ def _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts) -> list[Cap
     else:
         order = sorted(range(len(caps)), key=lambda i: (caps[i].time, caps[i].image_id))
         caps = [caps[i] for i in order]
-        labels = viewpoints.group_by_pose(
+        labels = group_viewpoints.group_by_pose(
             np.stack([c.center for c in caps]),
-            np.stack([viewpoints.viewing_direction(c.R) for c in caps]),
+            np.stack([group_viewpoints.viewing_direction(c.R) for c in caps]),
             max_distance=radius_m,
             max_angle_deg=max_yaw_deg,
             min_size=2,

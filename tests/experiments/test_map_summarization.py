@@ -272,7 +272,7 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     import shutil
 
     from rp_jax.sources import cmu_seasons
-    from rp_jax.sources.synthetic import layouts, presets
+    from rp_jax.sources.synthetic import presets, write_layout
 
     workdir, metrics, argv = tiny_run
     root = tmp_path / "cmu"
@@ -281,7 +281,7 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     assert len(poses) == 16
     kept = sorted(poses)[::2]
     (root / presets.EVALUATION_DIR / "ground-truth-query-images-slice8.txt").unlink()
-    layouts.write_cmu_query_poses(root / "slice8", [(n, *poses[n]) for n in kept])
+    write_layout.write_cmu_query_poses(root / "slice8", [(n, *poses[n]) for n in kept])
     tfds_dir = argv[argv.index("--tfds-dir") + 1]
     half = [
         "--size", "tiny", "--workdir", str(tmp_path / "run"), "--tfds-dir", tfds_dir,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rp_jax.sources import images, robotcar
+from rp_jax.sources.group_viewpoints import EARTH_RADIUS_M
 from rp_jax.sources.layout import LayoutError
-from rp_jax.sources.viewpoints import EARTH_RADIUS_M
 
 LAT0, LON0 = 51.76, -1.26
 LONDON = zoneinfo.ZoneInfo("Europe/London")

@@ -3,7 +3,7 @@
 The paper's datasets (Webcam Clip Art, Extended CMU Seasons, Oxford RobotCar) cannot be
 downloaded here. This package renders a street world under real sun, weather and seasons
 (``scene``, ``render``, ``sun``, ...) and writes it in each real dataset's on-disk layout
-(``presets``, ``layouts``, ``route``), so ``rp_jax.sources`` reads it like the real data.
+(``presets``, ``write_layout``, ``route``), so ``rp_jax.sources`` reads it like the real data.
 
 Entry points::
 

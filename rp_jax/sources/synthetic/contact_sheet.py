@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rp_jax.sources.synthetic import frame_jobs, layouts, presets
+from rp_jax.sources.synthetic import frame_jobs, presets, write_layout
 
 __all__ = ["contact_sheet", "render_sheets"]
 
@@ -124,6 +124,6 @@ def render_sheets(
             1,
             cv2.LINE_AA,
         )
-        layouts.write_image_atomic(path, np.concatenate([title, sheet], 0))
+        write_layout.write_image_atomic(path, np.concatenate([title, sheet], 0))
         sheets.append(path)
     return sheets

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic import layouts
+from rp_jax.sources.synthetic import write_layout
 
 __all__ = [
     "EVALUATION_DIR",
@@ -208,18 +208,18 @@ def render_job(job: FrameJob) -> tuple[str, float]:
             f"{(job.height, job.width, 3)}"
         )
     if job.segmentation_path is not None:
-        layouts.write_image_atomic(job.segmentation_path, np.asarray(frame.category, np.uint8))
-    image = layouts.bayer_mosaic(rgb, job.bayer) if job.bayer else rgb
-    encoded = layouts.encode_image(image, job.image_path.suffix)
+        write_layout.write_image_atomic(job.segmentation_path, np.asarray(frame.category, np.uint8))
+    image = write_layout.bayer_mosaic(rgb, job.bayer) if job.bayer else rgb
+    encoded = write_layout.encode_image(image, job.image_path.suffix)
     if job.keypoints_path is not None:
         # Keypoints of the image as a reader will decode it (after JPEG).
         decoded = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
         kp = _keypoints_with_depth(
             cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB), np.asarray(frame.depth, np.float32)
         )
-        layouts.write_bytes_atomic(job.keypoints_path, _npz_bytes(kp))
+        write_layout.write_bytes_atomic(job.keypoints_path, _npz_bytes(kp))
     # The image last: its presence marks the job done on a resumed run.
-    layouts.write_bytes_atomic(job.image_path, encoded)
+    write_layout.write_bytes_atomic(job.image_path, encoded)
     return str(job.image_path), time.perf_counter() - start
 
 

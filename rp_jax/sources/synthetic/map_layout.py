@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rp_jax.sources.capture import Camera
-from rp_jax.sources.synthetic import layouts, presets
+from rp_jax.sources.synthetic import presets, write_layout
 
 __all__ = ["available_query_dates", "ensure_cmu_map_layout"]
 
@@ -130,30 +130,30 @@ def ensure_cmu_map_layout(
     for j in reference:
         cameras.setdefault(cam_id(j), Camera("OPENCV", j.width, j.height, j.K, j.distortion))
     cameras = dict(sorted(cameras.items()))
-    layouts.write_cmu_intrinsics(root / "intrinsics.txt", cameras)
+    write_layout.write_cmu_intrinsics(root / "intrinsics.txt", cameras)
     slice_dir = root / slice_name
     for folder in ("database", "query"):
         (slice_dir / folder).mkdir(parents=True, exist_ok=True)
     in_query = [j for j in queries if j.image_path.parent.name == "query"]
     in_database = reference + [j for j in queries if j.image_path.parent.name == "database"]
-    layouts.write_cmu_poses(
+    write_layout.write_cmu_poses(
         slice_dir / f"ground-truth-database-images-{slice_name}.txt",
         [(j.image_path.name, j.R, j.t) for j in in_database],
     )
-    layouts.write_name_list(
+    write_layout.write_name_list(
         slice_dir / f"test-images-{slice_name}.txt", [j.image_path.name for j in in_query]
     )
     if in_query:
         # As the release ships them (slice{N}/camera-poses/), and in _evaluation/ as the full
         # synthetic render also writes them.
         entries = [(j.image_path.name, j.R, j.t) for j in in_query]
-        layouts.write_cmu_query_poses(slice_dir, entries)
-        layouts.write_cmu_poses(
+        write_layout.write_cmu_query_poses(slice_dir, entries)
+        write_layout.write_cmu_poses(
             root / presets.EVALUATION_DIR / f"ground-truth-query-images-{slice_name}.txt",
             entries,
         )
     presets.write_reference_model(
         slice_dir / "sparse", [(j, cam_id(j)) for j in reference], cameras
     )
-    layouts.write_text_atomic(marker, json.dumps(want_marker, indent=2) + "\n")
+    write_layout.write_text_atomic(marker, json.dumps(want_marker, indent=2) + "\n")
     return root

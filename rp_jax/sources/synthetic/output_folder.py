@@ -82,10 +82,10 @@ def _some_files(out_dir: Path, n: int = 5) -> list[str]:
 
 
 def _write_marker(out_dir: Path, parameters: Mapping) -> None:
-    from rp_jax.sources.synthetic import layouts
+    from rp_jax.sources.synthetic import write_layout
 
     (out_dir / PARAMETERS_JSON).parent.mkdir(parents=True, exist_ok=True)
-    layouts.write_text_atomic(out_dir / PARAMETERS_JSON,
+    write_layout.write_text_atomic(out_dir / PARAMETERS_JSON,
                               json.dumps(dict(parameters), indent=2, sort_keys=True) + "\n")
 
 

@@ -36,7 +36,7 @@ reference traversal only: 3D points are SIFT
 keypoints of the reference images back-projected with the rendered depth (keypoints on
 depth edges skipped); a point's track holds every reference image where it projects
 inside, at the depth that image rendered there (visibility), within 1.5 px of one of its
-SIFT keypoints. The model is in COLMAP's pixel convention (+0.5, see ``layouts``).
+SIFT keypoints. The model is in COLMAP's pixel convention (+0.5, see ``write_layout``).
 ``database{N}.db`` is not written.
 """
 
@@ -54,7 +54,7 @@ import numpy as np
 
 from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Camera
-from rp_jax.sources.synthetic import frame_jobs, layouts
+from rp_jax.sources.synthetic import frame_jobs, write_layout
 from rp_jax.sources.synthetic.frame_jobs import (
     EVALUATION_DIR,
     SYNTHETIC_DIR,
@@ -135,8 +135,8 @@ _CMU_SIZES = {
 def cmu_cameras(scale: float) -> dict[str, Camera]:
     """The real rig's cameras at ``scale`` times the 1024x768 image size."""
     return {
-        cam_id: layouts.scale_camera(cam, round(cam.width * scale), round(cam.height * scale))
-        for cam_id, cam in layouts.CMU_REAL_CAMERAS.items()
+        cam_id: write_layout.scale_camera(cam, round(cam.width * scale), round(cam.height * scale))
+        for cam_id, cam in write_layout.CMU_REAL_CAMERAS.items()
     }
 
 
@@ -188,7 +188,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                     cam = cameras[cam_id]
                     # c1 is triggered a few hundred microseconds after c0.
                     when_cam = when + dt.timedelta(microseconds=317 * c_idx)
-                    name = layouts.cmu_image_name(index, cam_id, when_cam)
+                    name = write_layout.cmu_image_name(index, cam_id, when_cam)
                     path = slice_dir / folder / name
                     job = FrameJob(
                         scene=scene_spec,
@@ -219,31 +219,31 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                         reference[slice_id].append((job, cam_id))
 
     def finalize():
-        layouts.write_text_atomic(
-            out_dir / "intrinsics.txt", layouts.format_cmu_intrinsics(cameras)
+        write_layout.write_text_atomic(
+            out_dir / "intrinsics.txt", write_layout.format_cmu_intrinsics(cameras)
         )
         for slice_id in spec.slices:
             slice_dir = out_dir / f"slice{slice_id}"
             for folder in ("database", "query"):
                 (slice_dir / folder).mkdir(parents=True, exist_ok=True)
-            layouts.write_cmu_poses(
+            write_layout.write_cmu_poses(
                 slice_dir / f"ground-truth-database-images-slice{slice_id}.txt",
                 poses[slice_id]["database"],
             )
-            layouts.write_name_list(
+            write_layout.write_name_list(
                 slice_dir / f"test-images-slice{slice_id}.txt",
                 [name for name, _, _ in poses[slice_id]["query"]],
             )
             if poses[slice_id]["query"]:
                 # Where the release ships query poses; _evaluation/ as layouts of world
                 # version 2 had them (the reader merges both).
-                layouts.write_cmu_query_poses(slice_dir, poses[slice_id]["query"])
-                layouts.write_cmu_poses(
+                write_layout.write_cmu_query_poses(slice_dir, poses[slice_id]["query"])
+                write_layout.write_cmu_poses(
                     out_dir / EVALUATION_DIR / f"ground-truth-query-images-slice{slice_id}.txt",
                     poses[slice_id]["query"],
                 )
             write_reference_model(slice_dir / "sparse", reference[slice_id], cameras)
-        layouts.write_text_atomic(
+        write_layout.write_text_atomic(
             out_dir / EVALUATION_DIR / "README.txt",
             "Synthetic world: ground-truth poses of the query images (same format as\n"
             "ground-truth-database-images-slice{N}.txt: name qw qx qy qz cx cy cz, the\n"
@@ -263,7 +263,7 @@ TRACK_DEPTH_RATIO = 0.02
 
 def build_reference_model(
     reference: Sequence[tuple[FrameJob, str]], cameras: dict[str, Camera]
-) -> tuple[list[layouts.ColmapImage], list[layouts.ColmapPoint]]:
+) -> tuple[list[write_layout.ColmapImage], list[write_layout.ColmapPoint]]:
     """Triangulation-free COLMAP model of the reference traversal.
 
     Every stable SIFT keypoint not yet in a track seeds a 3D point (back-projected through
@@ -280,7 +280,7 @@ def build_reference_model(
             data.append({k: z[k] for k in z.files})
     trees = [cKDTree(d["xy"]) if len(d["xy"]) else None for d in data]
     assigned = [np.full(len(d["xy"]), -1, np.int64) for d in data]
-    points: list[layouts.ColmapPoint] = []
+    points: list[write_layout.ColmapPoint] = []
     next_id = 1
     for a, ((job_a, cam_a), da) in enumerate(zip(reference, data)):
         cam = cameras[cam_a]
@@ -339,7 +339,7 @@ def build_reference_model(
                 errors.append(float(np.linalg.norm(uv - data[img]["xy"][kk])))
                 assigned[img][kk] = next_id
             points.append(
-                layouts.ColmapPoint(
+                write_layout.ColmapPoint(
                     point3d_id=next_id,
                     xyz=Xw[i],
                     rgb=tuple(int(c) for c in da["rgb"][k]),
@@ -349,7 +349,7 @@ def build_reference_model(
             )
             next_id += 1
     images = [
-        layouts.ColmapImage(
+        write_layout.ColmapImage(
             image_id=a + 1,
             name=job.image_path.name,
             camera_id=1 + sorted(cameras).index(cam_id),
@@ -370,4 +370,4 @@ def write_reference_model(
     images, points = build_reference_model(reference, cameras)
     colmap_cameras = {1 + i: cameras[c] for i, c in enumerate(sorted(cameras))}
     log.info("%s: %d images, %d points", sparse_dir, len(images), len(points))
-    return layouts.write_colmap_text(sparse_dir, colmap_cameras, images, points)
+    return write_layout.write_colmap_text(sparse_dir, colmap_cameras, images, points)

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from rp_jax.schedule import load_spec
-from rp_jax.sources.synthetic import frame_jobs, layouts
+from rp_jax.sources.synthetic import frame_jobs, write_layout
 from rp_jax.sources.synthetic.frame_jobs import (
     FrameJob,
     Plan,
@@ -86,8 +86,9 @@ _ROBOTCAR_SIZES = {
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
     """The frames of the ``robotcar`` preset and its metadata writer."""
     spec = _ROBOTCAR_SIZES[size]
-    cam = layouts.ROBOTCAR_STEREO_CENTRE
-    cam = layouts.scale_camera(cam, round(cam.width * spec.scale), round(cam.height * spec.scale))
+    cam = write_layout.ROBOTCAR_STEREO_CENTRE
+    cam = write_layout.scale_camera(cam, round(cam.width * spec.scale),
+                                    round(cam.height * spec.scale))
     traversals = robotcar_traversals()
     if spec.traversals < len(traversals):
         # Morning and afternoon, so the slots far apart are both there.
@@ -140,7 +141,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                 pose = route.pose_at(s, lateral=wander)
                 R, t = camera_pose(pose, mount)
                 when = start + dt.timedelta(seconds=s / speed)
-                ts = layouts.unix_microseconds(when)
+                ts = write_layout.unix_microseconds(when)
                 stamps.append(ts)
                 path = out_dir / folder / "stereo" / "centre" / f"{ts}.png"
                 jobs.append(
@@ -168,28 +169,29 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
             heading_vec = np.array([math.cos(pose.heading), math.sin(pose.heading), 0.0])
             velocity = heading_vec * speed if s < route.length else np.zeros(3)
             when = start + dt.timedelta(seconds=k / 10)
-            ins_rows.append(frame.ins_fields(pose, layouts.unix_microseconds(when), velocity))
+            ins_rows.append(frame.ins_fields(pose, write_layout.unix_microseconds(when), velocity))
         records[folder] = {"stamps": sorted(stamps), "ins": ins_rows}
 
     def finalize():
-        layouts.write_text_atomic(
-            out_dir / "models" / "stereo_narrow_left.txt", layouts.format_robotcar_camera_model(cam)
+        write_layout.write_text_atomic(
+            out_dir / "models" / "stereo_narrow_left.txt",
+            write_layout.format_robotcar_camera_model(cam),
         )
         for sensor in ("stereo", "ins"):
-            layouts.write_text_atomic(
+            write_layout.write_text_atomic(
                 out_dir / "extrinsics" / f"{sensor}.txt",
-                layouts.format_robotcar_extrinsics([0, 0, 0, 0, 0, 0]),
+                write_layout.format_robotcar_extrinsics([0, 0, 0, 0, 0, 0]),
             )
-        layouts.write_text_atomic(
-            out_dir / "viewpoints.csv", layouts.format_viewpoints_csv(viewpoints)
+        write_layout.write_text_atomic(
+            out_dir / "viewpoints.csv", write_layout.format_viewpoints_csv(viewpoints)
         )
         for folder, rec in records.items():
-            layouts.write_text_atomic(
+            write_layout.write_text_atomic(
                 out_dir / folder / "stereo.timestamps",
-                layouts.format_stereo_timestamps(rec["stamps"]),
+                write_layout.format_stereo_timestamps(rec["stamps"]),
             )
-            layouts.write_text_atomic(
-                out_dir / folder / "gps" / "ins.csv", layouts.format_ins_csv(rec["ins"])
+            write_layout.write_text_atomic(
+                out_dir / folder / "gps" / "ins.csv", write_layout.format_ins_csv(rec["ins"])
             )
 
     return Plan("robotcar", out_dir, jobs, finalize)

@@ -37,7 +37,7 @@ import numpy as np
 
 from rp_jax import categories, sun
 from rp_jax.schedule import load_spec
-from rp_jax.sources.synthetic import frame_jobs, layouts
+from rp_jax.sources.synthetic import frame_jobs, write_layout
 from rp_jax.sources.synthetic.frame_jobs import (
     FrameJob,
     Plan,
@@ -227,7 +227,8 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                 # A mast sways: sub-pixel to ~1 px of rotation.
                 jitter = small_rotation(seeded_rng(seed, 6, i, d_idx, k), 0.6 / K[0, 0])
                 R = jitter @ R0
-                path = scene_dir / layouts.webcam_image_name(when, layouts.WEBCAM_NAME_TIMEZONE)
+                path = scene_dir / write_layout.webcam_image_name(
+                    when, write_layout.WEBCAM_NAME_TIMEZONE)
                 jobs.append(
                     FrameJob(
                         scene=scene_spec,
@@ -248,7 +249,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                 scene_dir,
                 {
                     "timezone": tz_name,
-                    "name_timezone": layouts.WEBCAM_NAME_TIMEZONE,
+                    "name_timezone": write_layout.WEBCAM_NAME_TIMEZONE,
                     "latitude": lat,
                     "longitude": lon,
                     "synthetic": {
@@ -265,11 +266,12 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
 
     def finalize():
         for scene_dir, payload in sidecars:
-            layouts.write_webcam_scene_sidecar(scene_dir, **payload)
+            write_layout.write_webcam_scene_sidecar(scene_dir, **payload)
         for job in jobs:
             elevation, azimuth = sun.solar_position(
                 sun.unix_seconds(job.when), job.scene.latitude, job.scene.longitude
             )
-            layouts.write_webcam_sun_angles(job.image_path, 90.0 - float(elevation), float(azimuth))
+            write_layout.write_webcam_sun_angles(job.image_path, 90.0 - float(elevation),
+                                                 float(azimuth))
 
     return Plan("webcam_clipart", out_dir, jobs, finalize)

@@ -1,4 +1,4 @@
-"""Presets of the synthetic world: the paper's three datasets, in their real layouts.
+"""Presets of the synthetic world: the paper's three datasets, in their real write_layout.
 
 The paper trains and tests on Webcam Clip Art and Extended CMU Seasons (Sec. IV-A-1) and
 on Oxford RobotCar (Sec. IV-B-1, Table I). None can be downloaded here, so each preset
@@ -27,7 +27,7 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from rp_jax.sources.synthetic import layouts, plan_cmu, plan_robotcar, plan_webcam
+from rp_jax.sources.synthetic import plan_cmu, plan_robotcar, plan_webcam, write_layout
 from rp_jax.sources.synthetic.frame_jobs import (
     EVALUATION_DIR,
     SYNTHETIC_DIR,
@@ -211,7 +211,7 @@ def generate(
         out_dir,
     )
     (out_dir / SYNTHETIC_DIR).mkdir(exist_ok=True)
-    layouts.write_text_atomic(
+    write_layout.write_text_atomic(
         out_dir / SYNTHETIC_DIR / "generation.json",
         json.dumps(
             {**parameters, "frames": len(the_plan.jobs)},

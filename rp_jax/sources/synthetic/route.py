@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from rp_jax.sources.synthetic.layouts import G_CAMERA_IMAGE
+from rp_jax.sources.synthetic.write_layout import G_CAMERA_IMAGE
 
 __all__ = [
     "EARTH_RADIUS_M",

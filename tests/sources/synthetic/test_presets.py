@@ -25,7 +25,7 @@ import scipy.io.matlab
 
 from rp_jax import categories, sun
 from rp_jax.schedule import preset as schedule_preset
-from rp_jax.sources.synthetic import frame_jobs, layouts, presets
+from rp_jax.sources.synthetic import frame_jobs, presets, write_layout
 from rp_jax.sources.synthetic.route import rotation_ned
 
 # --------------------------------------------------------------------------- a tiny exact world
@@ -133,7 +133,7 @@ def test_webcam_layout(fake_world, tmp_path):
         assert frames
         days, assigned, unassigned = set(), 0, 0
         for f in frames:
-            m = layouts.WEBCAM_NAME_RE.match(f.name)
+            m = write_layout.WEBCAM_NAME_RE.match(f.name)
             assert m, f.name
             named = dt.datetime.strptime(m.group(1) + m.group(2), "%Y%m%d%H%M%S")
             when = named.replace(tzinfo=dt.UTC).astimezone(tz)
@@ -229,7 +229,7 @@ def _read_poses(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     for line in path.read_text().splitlines():
         name, *v = line.split()
         v = np.array(v, float)
-        R = layouts.quaternion_to_rotation(v[:4])
+        R = write_layout.quaternion_to_rotation(v[:4])
         poses[name] = (R, -R @ v[4:])
     return poses
 
@@ -377,12 +377,12 @@ def test_robotcar_layout(fake_world, tmp_path):
     out = presets.generate(
         "robotcar", tmp_path / "rc", size="tiny", seed=0, workers=1, progress=False
     )
-    folders = sorted(p.name for p in out.iterdir() if layouts.ROBOTCAR_FOLDER_RE.match(p.name))
+    folders = sorted(p.name for p in out.iterdir() if write_layout.ROBOTCAR_FOLDER_RE.match(p.name))
     assert len(folders) == 2
     model = (out / "models" / "stereo_narrow_left.txt").read_text().split("\n")
     fx, fy, cx, cy = (float(v) for v in model[0].split())
     G = np.array([[float(v) for v in row.split()] for row in model[1:5]])
-    np.testing.assert_allclose(G, layouts.G_CAMERA_IMAGE)
+    np.testing.assert_allclose(G, write_layout.G_CAMERA_IMAGE)
     K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]])
     vps = (out / "viewpoints.csv").read_text().splitlines()
     assert vps[0] == "viewpoint,latitude,longitude,yaw_deg" and len(vps) == 3
@@ -396,12 +396,12 @@ def test_robotcar_layout(fake_world, tmp_path):
         assert sorted(int(p.stem) for p in pngs) == sorted(stamps)
         raw = cv2.imread(str(pngs[0]), cv2.IMREAD_UNCHANGED)
         assert raw.ndim == 2 and raw.dtype == np.uint8  # a raw mosaic, one channel
-        rgb = cv2.cvtColor(raw, layouts.BAYER_TO_RGB["gbrg"])
+        rgb = cv2.cvtColor(raw, write_layout.BAYER_TO_RGB["gbrg"])
         assert rgb.shape[2] == 3
         # Image times lie within the drive that started at the folder's UTC time.
         assert all(0 <= (s / 1e6 - start.timestamp()) < 600 for s in stamps)
         ins = (out / folder / "gps" / "ins.csv").read_text().splitlines()
-        assert ins[0] == layouts.INS_HEADER
+        assert ins[0] == write_layout.INS_HEADER
         rows = [dict(zip(ins[0].split(","), line.split(","))) for line in ins[1:]]
         ts = np.array([int(r["timestamp"]) for r in rows])
         assert np.all(np.diff(ts) > 0) and ts[0] <= min(stamps) and ts[-1] >= max(stamps)

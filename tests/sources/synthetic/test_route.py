@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rp_jax.sources.synthetic import layouts
+from rp_jax.sources.synthetic import write_layout
 from rp_jax.sources.synthetic.route import (
     CameraMount,
     LocalTangentFrame,
@@ -93,6 +93,6 @@ def test_local_frame_ins_fields_round_trip():
     assert row["latitude"] > 51.75 and row["longitude"] > -1.25
     # ~111 km per degree of latitude
     assert (row["latitude"] - 51.75) * 111_320 == pytest.approx(50.0, rel=0.01)
-    text = layouts.format_ins_csv([row])
+    text = write_layout.format_ins_csv([row])
     header, line = text.splitlines()
     assert dict(zip(header.split(","), line.split(",")))["utm_zone"] == "30U"
