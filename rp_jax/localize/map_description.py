@@ -235,9 +235,7 @@ def describe_map(
     obs_desc: np.ndarray | None = None
     image_desc: dict[str, np.ndarray] = {}
     names_h5 = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
-    order = np.argsort(map_points.obs_image_id, kind="stable")
-    ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
-    groups = {int(i): order[s:e] for i, s, e in zip(ids, starts, np.append(starts[1:], len(order)))}
+    groups = map_points.rows_by_image()
     for image_id, image in tqdm(sorted(rec.images.items()), desc="map descriptors",
                                 leave=False, disable=not progress):
         sel = groups.get(int(image_id), np.zeros(0, np.int64))

@@ -108,13 +108,10 @@ class LocalizationMap:
         self.point_descriptors = point_descriptors
         self.index = index
         self._points_of_image: dict[str, np.ndarray] = {}
-        order = np.argsort(map_points.obs_image_id, kind="stable")
-        ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
-        bounds = np.append(starts, len(order))
         id_to_name = dict(map_points.image_names)
-        for k, image_id in enumerate(ids.tolist()):
-            rows = map_points.obs_point[order[bounds[k] : bounds[k + 1]]]
-            self._points_of_image[id_to_name.get(image_id, str(image_id))] = np.unique(rows)
+        for image_id, rows in map_points.rows_by_image().items():
+            name = id_to_name.get(image_id, str(image_id))
+            self._points_of_image[name] = np.unique(map_points.obs_point[rows])
 
     def points_seen_by(self, image_names: list[str]) -> np.ndarray:
         """Sorted rows of the points observed by any of the given database images."""

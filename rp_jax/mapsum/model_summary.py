@@ -5,7 +5,8 @@
 1. reads the COLMAP model (``rp_jax.sources.colmap_model``);
 2. for ``method="rp"``: predicts every observation's repeatability curve from its 64x64
    patch in its database image at that image's capture time
-   (``observation_repeatability``; times from ``rp_jax.sources.capture_times``: a
+   (``observations.observation_repeatability``, the same per-image description as the
+   experiment's map; times from ``rp_jax.sources.capture_times``: a
    ``name,datetime`` table, EXIF, or the CMU / RobotCar / YYYYMMDD_HHMMSS names), averages
    them per 3D point (``representation.point_repeatability``) and reads each point's score at
    the query time ``at`` (``predict.at_time``), or at every timestamp with ``all_slots``;
@@ -20,7 +21,7 @@
 
 Pixel convention: the model's keypoints are COLMAP's; the patches are cut at
 ``xy + COLMAP_TO_OPENCV_PX`` (OpenCV's), on the undistorted image when the camera has
-distortion (as ``rp_jax.mapsum.observations`` does for the experiment's map).
+distortion (``rp_jax.mapsum.observations.map_images``).
 """
 
 from __future__ import annotations
@@ -31,12 +32,9 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-import cv2
 import numpy as np
-from tqdm.auto import tqdm
 
 from rp_jax import files
-from rp_jax.groundtruth.patches import extract_patches
 from rp_jax.localize.map_description import (
     MAP_DESCRIPTION,
     MAP_MODEL_DIR,
@@ -44,14 +42,12 @@ from rp_jax.localize.map_description import (
     describe_map,
 )
 from rp_jax.mapsum.baselines import summarize
+from rp_jax.mapsum.observations import observation_repeatability
 from rp_jax.mapsum.partition import partition
 from rp_jax.mapsum.representation import point_repeatability
-from rp_jax.sources import images as images_lib
 from rp_jax.sources.colmap_model import (
-    COLMAP_TO_OPENCV_PX,
     MapPoints,
     map_points_from_reconstruction,
-    opencv_camera,
     read_model,
     summary_reconstruction,
     write_model,
@@ -62,7 +58,6 @@ __all__ = [
     "COMMAND_METHODS",
     "POINT_REPEATABILITY",
     "SUMMARY_JSON",
-    "observation_repeatability",
     "slot_folder",
     "summarize_model",
 ]
@@ -76,63 +71,6 @@ COMMAND_METHODS = {
 }
 SUMMARY_JSON = "summary.json"
 POINT_REPEATABILITY = "point_repeatability.npz"
-
-
-def observation_repeatability(
-    rec,
-    map_points: MapPoints,
-    image_dir: str | os.PathLike,
-    predictor,
-    capture_time: Callable[[Path, str], dt.datetime],
-    *,
-    progress: bool = False,
-) -> np.ndarray:
-    """[n_obs, T] predicted repeatability of every observation of the model.
-
-    Args:
-      rec: the pycolmap reconstruction.
-      map_points: its ``MapPoints`` view.
-      image_dir: folder of its database images (names as in the model).
-      predictor: a ``rp_jax.predict.Predictor``.
-      capture_time: (image path, model name) -> capture time (``CaptureTimes``).
-      progress: tqdm bar.
-
-    Raises:
-      FileNotFoundError: a database image is missing or unreadable.
-      LayoutError: an image whose size is not its camera's.
-      NoCaptureTimeError: an image without a capture time.
-    """
-    image_dir = Path(image_dir)
-    rep = np.full((map_points.num_observations, predictor.num_timestamps), np.nan, np.float32)
-    order = np.argsort(map_points.obs_image_id, kind="stable")
-    ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
-    groups = {int(i): order[s:e] for i, s, e in zip(ids, starts, np.append(starts[1:], len(order)))}
-    seen = [(i, im) for i, im in sorted(rec.images.items()) if int(i) in groups]
-    whens = {int(i): capture_time(image_dir / im.name, im.name) for i, im in seen}  # fail early
-    for image_id, image in tqdm(seen, desc="map repeatability", leave=False,
-                                disable=not progress):
-        path = image_dir / image.name
-        rgb = images_lib.read_rgb(path) if path.is_file() else None
-        if rgb is None:
-            raise FileNotFoundError(f"{path}: database image of the model is missing or "
-                                    "unreadable")
-        K, dist, w, h = opencv_camera(rec.cameras[image.camera_id])
-        if rgb.shape[:2] != (h, w):
-            raise LayoutError(f"{path} is {rgb.shape[1]}x{rgb.shape[0]}, its camera in the model "
-                              f"{w}x{h}")
-        sel = groups[int(image_id)]
-        xy = map_points.obs_xy[sel] + COLMAP_TO_OPENCV_PX
-        if dist.size and np.any(dist):
-            rgb = cv2.undistort(rgb, K, dist, None, K)
-            xy = cv2.undistortPoints(xy[:, None, :], K, dist, P=K).reshape(-1, 2)
-        xy = np.clip(xy, 0, [w - 1, h - 1])
-        when = whens[int(image_id)]
-        try:
-            rep[sel] = predictor(extract_patches(rgb, xy), xy, [when] * len(sel),
-                                 image_size=(w, h))
-        except ValueError as err:  # e.g. a capture time the predictor's schedule does not cover
-            raise LayoutError(f"{path} (captured {when:%Y-%m-%d %H:%M}): {err}") from err
-    return rep
 
 
 def slot_folder(j: int, label: str) -> str:

@@ -13,12 +13,18 @@ observation takes the descriptor of the detection nearest to its keypoint within
 ``associate_px`` pixels; observations without one do not enter the mean. Re-detection keeps
 each descriptor's own scale and orientation, which ``SIFT.compute`` at a bare position
 could not know.
+
+The per-image part is shared with the summary of one's own COLMAP model
+(``rp_jax.mapsum.model_summary``): ``map_images`` reads each database image, undistorts it
+and its observations' keypoints (COLMAP's pixel convention to OpenCV's, once), and
+``observation_repeatability`` runs a predictor on their patches at the capture time.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import cv2
@@ -31,13 +37,20 @@ from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
 from rp_jax.sources import cmu_seasons, images
 from rp_jax.sources.colmap_model import MapPoints, opencv_camera, opencv_xy
+from rp_jax.sources.layout import LayoutError
 
 __all__ = [
     "DatabaseObservations",
+    "MapImage",
+    "cmu_capture_time",
     "describe_observations",
+    "map_images",
+    "observation_repeatability",
     "point_categories",
     "query_scores",
 ]
+
+CaptureTime = Callable[[Path, str], dt.datetime]
 
 
 class DatabaseObservations:
@@ -61,6 +74,146 @@ class DatabaseObservations:
         self.category = category
         self.image_descriptors = image_descriptors
         self.associated = np.all(np.isfinite(descriptors), axis=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class MapImage:
+    """A database image of the map, read and undistorted, with the observations it holds.
+
+    Attributes:
+      image_id, name, path: the image in the model and on disk.
+      when: its capture time.
+      stored: RGB uint8 as stored (the model's keypoints were detected on it).
+      undistorted: RGB undistorted with the camera's own K (``stored`` without distortion).
+      size: (W, H).
+      rows: the map's observation rows in this image, ascending (may be empty).
+      xy_stored: [len(rows), 2] their keypoints in the stored image, OpenCV's convention.
+      xy: the same in the undistorted image, clipped inside it: where patches are cut.
+    """
+
+    image_id: int
+    name: str
+    path: Path
+    when: dt.datetime
+    stored: np.ndarray
+    undistorted: np.ndarray
+    size: tuple[int, int]
+    rows: np.ndarray
+    xy_stored: np.ndarray
+    xy: np.ndarray
+
+    def patches(self) -> np.ndarray:
+        """[len(rows), 64, 64, 3] the observations' patches (Sec. III-B)."""
+        return extract_patches(self.undistorted, self.xy)
+
+    def repeatability(self, predictor, patches: np.ndarray | None = None) -> np.ndarray:
+        """[len(rows), T] the predictor on the observations' patches at the capture time."""
+        patches = self.patches() if patches is None else patches
+        try:
+            return predictor(patches, self.xy, [self.when] * len(self.rows),
+                             image_size=self.size)
+        except ValueError as err:  # e.g. a capture time the predictor's schedule does not cover
+            raise LayoutError(f"{self.path} (captured {self.when:%Y-%m-%d %H:%M}): {err}") from err
+
+
+def cmu_capture_time(path: Path, name: str) -> dt.datetime:
+    """The capture time in an Extended CMU Seasons image name (``img_<i>_<c>_<us>us.jpg``)."""
+    parsed = cmu_seasons.parse_image_name(name)
+    if parsed is None:
+        raise ValueError(
+            f"{path}: expected a name img_<i>_<c0|c1>_<unix us>us.jpg (its capture time)"
+        )
+    return cmu_seasons.capture_time(parsed[2])
+
+
+def map_images(
+    rec,
+    map_points: MapPoints,
+    image_dir: str | Path,
+    capture_time: CaptureTime,
+    *,
+    every_image: bool = False,
+    desc: str = "map images",
+    progress: bool = False,
+) -> Iterator[MapImage]:
+    """The database images of a map, in id order, each read and undistorted.
+
+    Every capture time is read before the first image, so a missing one fails early.
+
+    Args:
+      rec: the pycolmap reconstruction (cameras and names of the database images).
+      map_points: its ``MapPoints`` view.
+      image_dir: folder of the database images (names as in the model).
+      capture_time: (image path, model name) -> capture time (``CaptureTimes``,
+        ``cmu_capture_time``).
+      every_image: also the images without observations (``rows`` empty).
+      desc, progress: tqdm bar.
+
+    Raises:
+      FileNotFoundError: a database image is missing or unreadable.
+      LayoutError: an image whose size is not its camera's.
+    """
+    image_dir = Path(image_dir)
+    groups = map_points.rows_by_image()
+    chosen = [(int(i), im) for i, im in sorted(rec.images.items())
+              if every_image or int(i) in groups]
+    whens = {i: capture_time(image_dir / im.name, im.name) for i, im in chosen}  # fail early
+    for image_id, image in tqdm(chosen, desc=desc, leave=False, disable=not progress):
+        path = image_dir / image.name
+        rgb = images.read_rgb(path) if path.is_file() else None
+        if rgb is None:
+            raise FileNotFoundError(f"{path}: database image of the map is missing or unreadable")
+        K, dist, w, h = opencv_camera(rec.cameras[image.camera_id])
+        if rgb.shape[:2] != (h, w):
+            raise LayoutError(f"{path} is {rgb.shape[1]}x{rgb.shape[0]}, its camera in the model "
+                              f"{w}x{h}")
+        rows = groups.get(image_id, np.zeros(0, np.int64))
+        xy_stored = opencv_xy(map_points.obs_xy[rows])
+        if dist.size and np.any(dist):
+            undistorted = cv2.undistort(rgb, K, dist, None, K)
+            xy = cv2.undistortPoints(xy_stored[:, None, :], K, dist, P=K).reshape(-1, 2)
+        else:
+            undistorted, xy = rgb, xy_stored
+        yield MapImage(
+            image_id=image_id,
+            name=image.name,
+            path=path,
+            when=whens[image_id],
+            stored=rgb,
+            undistorted=undistorted,
+            size=(w, h),
+            rows=rows,
+            xy_stored=xy_stored,
+            xy=np.clip(xy, 0, [w - 1, h - 1]),
+        )
+
+
+def observation_repeatability(
+    rec,
+    map_points: MapPoints,
+    image_dir: str | Path,
+    predictor,
+    capture_time: CaptureTime,
+    *,
+    progress: bool = False,
+) -> np.ndarray:
+    """[n_obs, T] predicted repeatability of every observation of the map (Sec. V-A-1).
+
+    Args:
+      rec, map_points, image_dir, capture_time, progress: as in ``map_images``.
+      predictor: a ``rp_jax.predict.Predictor``.
+
+    Raises:
+      FileNotFoundError: a database image is missing or unreadable.
+      LayoutError: an image whose size is not its camera's, or a capture time the
+        predictor's schedule does not cover.
+      NoCaptureTimeError: an image without a capture time.
+    """
+    rep = np.full((map_points.num_observations, predictor.num_timestamps), np.nan, np.float32)
+    for image in map_images(rec, map_points, image_dir, capture_time,
+                            desc="map repeatability", progress=progress):
+        rep[image.rows] = image.repeatability(predictor)
+    return rep
 
 
 def _category_map(root: Path, image_path: Path) -> np.ndarray | None:
@@ -115,54 +268,31 @@ def describe_observations(
     desc = np.full((n_obs, 128), np.nan, np.float32)
     cat = np.full(n_obs, categories.UNKNOWN, np.int64)
     image_desc: dict[str, np.ndarray] = {}
-    order = np.argsort(map_points.obs_image_id, kind="stable")
-    ids, starts = np.unique(map_points.obs_image_id[order], return_index=True)
-    groups = {int(i): order[s:e] for i, s, e in zip(ids, starts, np.append(starts[1:], len(order)))}
-    for image_id, image in tqdm(
-        sorted(rec.images.items()), desc="map images", leave=False, disable=not progress
-    ):
-        path = image_dir / image.name
-        parsed = cmu_seasons.parse_image_name(image.name)
-        if parsed is None:
-            raise ValueError(
-                f"{path}: expected a name img_<i>_<c0|c1>_<unix us>us.jpg (its capture time)"
-            )
-        rgb = images.read_rgb(path)
-        if rgb is None:
-            raise FileNotFoundError(f"{path}: database image of the map is missing or unreadable")
-        K, dist, w, h = opencv_camera(rec.cameras[image.camera_id])
-        if rgb.shape[:2] != (h, w):
-            raise ValueError(f"{path} is {rgb.shape[1]}x{rgb.shape[0]}, the model's camera {w}x{h}")
-        distorted = bool(dist.size and np.any(dist))
-        undist = cv2.undistort(rgb, K, dist, None, K) if distorted else rgb
+    for image in map_images(rec, map_points, image_dir, cmu_capture_time, every_image=True,
+                            progress=progress):
         feats = detect_and_describe(
-            rgb if describe_on == "stored" else undist, max_keypoints=max_keypoints
+            image.stored if describe_on == "stored" else image.undistorted,
+            max_keypoints=max_keypoints,
         )
         image_desc[image.name] = feats.descriptor
-        sel = groups.get(int(image_id))
-        if sel is None:
+        sel = image.rows
+        if not len(sel):
             continue
-        xy_stored = opencv_xy(map_points.obs_xy[sel])
-        xy = (
-            cv2.undistortPoints(xy_stored[:, None, :], K, dist, P=K).reshape(-1, 2)
-            if distorted
-            else xy_stored
-        )
-        xy = np.clip(xy, 0, [w - 1, h - 1])
-        when = cmu_seasons.capture_time(parsed[2])
-        patches = extract_patches(undist, xy)
-        rep[sel] = predictor(patches, xy, [when] * len(sel), image_size=(w, h))
+        patches = image.patches()
+        rep[sel] = image.repeatability(predictor, patches)
         for k, other in more.items():
-            more_rep[k][sel] = other(patches, xy, [when] * len(sel), image_size=(w, h))
+            more_rep[k][sel] = image.repeatability(other, patches)
         if len(feats):
             d, k = cKDTree(feats.xy).query(
-                xy_stored if describe_on == "stored" else xy, distance_upper_bound=associate_px
+                image.xy_stored if describe_on == "stored" else image.xy,
+                distance_upper_bound=associate_px,
             )
             ok = np.isfinite(d)
             desc[sel[ok]] = feats.descriptor[k[ok]]
-        seg = _category_map(root, path)
+        seg = _category_map(root, image.path)
         if seg is not None:
             # The segmentation is of the image on disk (distorted): use the keypoint there.
+            w, h = image.size
             raw = np.clip(np.floor(map_points.obs_xy[sel]).astype(int), 0, [w - 1, h - 1])
             c = seg[raw[:, 1], raw[:, 0]].astype(np.int64)
             cat[sel] = np.where(c == categories.UNLABELLED_PIXEL, categories.UNKNOWN, c)

@@ -142,6 +142,10 @@ class MapPoints:
         """Sorted ids of all database images."""
         return np.array(sorted(self.image_names), dtype=np.int64)
 
+    def rows_by_image(self) -> dict[int, np.ndarray]:
+        """Image id -> the rows of its observations (ascending), for images with any."""
+        return _group_by(self.obs_image_id)
+
     def track(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """(image ids, 2D point indices) of point row ``i``."""
         off = self.track_offsets
@@ -369,7 +373,7 @@ def gather_observation_values(
       KeyError: naming an image of the map missing from ``per_image``.
     """
     out = None
-    for image_id, sel in _group_by(map_points.obs_image_id).items():
+    for image_id, sel in map_points.rows_by_image().items():
         name = map_points.image_names.get(image_id, str(image_id))
         if name not in per_image:
             raise KeyError(f"no per-keypoint array for image {name!r} (id {image_id})")

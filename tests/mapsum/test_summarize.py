@@ -17,11 +17,8 @@ from rp_jax import predict
 from rp_jax.groundtruth.patches import extract_patches
 from rp_jax.mapsum import __main__ as command
 from rp_jax.mapsum import keep_count, map_points_from_reconstruction, partition, read_model
-from rp_jax.mapsum.model_summary import (
-    POINT_REPEATABILITY,
-    observation_repeatability,
-    slot_folder,
-)
+from rp_jax.mapsum.model_summary import POINT_REPEATABILITY, slot_folder
+from rp_jax.mapsum.observations import observation_repeatability
 from rp_jax.sources import images
 from rp_jax.sources.capture_times import CaptureTimes
 from tests._own_data import make_predictor, make_scene
