@@ -90,7 +90,7 @@ PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
 #    traversals starting between 9:00 and 16:00 (9:30-14:30 before); brick walls, lawns,
 #    lawn paths and flat roofs textured with real photographs of brick, grass and gravel
 #    (``photo_textures``, from scikit-image; windows, signs and snow where they were).
-# 4: parked cars stay with their street's dwell times (``scene.parked_car``; a new car every
+# 4: parked cars stay with their street's dwell times (``traffic.parked_car``; a new car every
 #    4 hours before) and window glass mirrors the sky (``render._reflect_sky_in_glass``).
 WORLD_VERSION = 4
 SIZES = ("tiny", "small", "full")

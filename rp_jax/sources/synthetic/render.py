@@ -17,6 +17,11 @@ gather of a per-quad table; soft cloud shadows are traced at half resolution.
 Conventions: ``View`` follows ``rp_jax.sources.capture`` (OpenCV pixels with the centre of
 the top-left pixel at (0, 0), ``x_cam = R X + t``, camera looking along +z). A non-zero
 ``distortion`` renders the image the lens records (undistorted render, then ``cv2.remap``).
+
+Why this module is over 600 lines: it is one frame's pipeline (geometry, rasterisation,
+cast shadows, sky and clouds, glass, the frame's assembly), whose stages share the private
+plane-geometry helpers and the per-frame buffers; what stands alone already lives apart
+(``conditions``, ``camera_effects``, ``scene``, ``traffic``, the textures).
 """
 
 from __future__ import annotations
@@ -32,9 +37,10 @@ from rp_jax import categories
 from rp_jax.sources.synthetic import camera_effects
 from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic import textures as tx
-from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState, dynamic_quads
+from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState
+from rp_jax.sources.synthetic.traffic import dynamic_quads
 
-__all__ = ["View", "Frame", "render", "project", "contact_sheet", "look_at"]
+__all__ = ["View", "Frame", "render", "project", "look_at"]
 
 SS = 2  # supersampling factor
 NEAR = 0.05
@@ -917,41 +923,3 @@ def render(
     meta.update(cam_meta)
     meta["n_dynamic_quads"] = int(dyn.n)
     return Frame(rgb=rgb, depth=depth, category=category, meta=meta)
-
-
-# ---------------------------------------------------------------- contact sheets
-
-
-def contact_sheet(
-    frames: list, labels: list[str], *, columns: int | None = None, width: int = 320
-) -> np.ndarray:
-    """Tiles frames (``Frame`` or RGB arrays) with a caption under each into one RGB image.
-
-    Args:
-      frames: frames or uint8 RGB images.
-      labels: one caption per frame.
-      columns: tiles per row (default: up to 4).
-      width: width of each tile in pixels.
-
-    Returns:
-      uint8 RGB image.
-    """
-    if len(frames) != len(labels):
-        raise ValueError(f"contact_sheet: {len(frames)} frames but {len(labels)} labels")
-    imgs = [f.rgb if isinstance(f, Frame) else np.asarray(f) for f in frames]
-    columns = columns or min(4, len(imgs))
-    tiles = []
-    for img, label in zip(imgs, labels):
-        h = int(round(img.shape[0] * width / img.shape[1]))
-        tile = np.full((h + 22, width, 3), 255, np.uint8)
-        tile[:h] = cv2.resize(img, (width, h), interpolation=cv2.INTER_AREA)
-        cv2.putText(
-            tile, str(label), (4, h + 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA
-        )
-        tiles.append(tile)
-    th = max(t.shape[0] for t in tiles)
-    tiles = [np.pad(t, ((0, th - t.shape[0]), (0, 0), (0, 0)), constant_values=255) for t in tiles]
-    while len(tiles) % columns:
-        tiles.append(np.full_like(tiles[0], 255))
-    rows = [np.hstack(tiles[i : i + columns]) for i in range(0, len(tiles), columns)]
-    return np.vstack(rows)

@@ -28,24 +28,23 @@ import numpy as np
 from rp_jax.sources.synthetic import photo_textures as pt
 
 __all__ = [
+    "LETTERS",
     "TEXEL_M",
+    "finish",
+    "put_text",
+    "rand_colour",
     "value_noise",
     "facade_texture",
     "side_wall_texture",
     "roof_texture",
     "ground_texture",
-    "tree_structure",
-    "tree_texture",
-    "car_textures",
-    "person_texture",
-    "plain_texture",
     "sign_texture",
     "mip_pyramid",
     "pad16",
 ]
 
 TEXEL_M = 0.025  # metres per texel of near-camera surfaces (facades, road, sidewalks)
-_LETTERS = string.ascii_uppercase + string.digits
+LETTERS = string.ascii_uppercase + string.digits
 
 
 def pad16(n: float) -> int:
@@ -80,7 +79,7 @@ def value_noise(
     return np.clip(out / total, 0.0, 1.0)
 
 
-def _finish(rgb: np.ndarray, aux: np.ndarray, blur: float = 0.6) -> np.ndarray:
+def finish(rgb: np.ndarray, aux: np.ndarray, blur: float = 0.6) -> np.ndarray:
     """float RGB in [0,1] + uint8 aux -> band-limited RGBA uint8."""
     rgb = np.clip(rgb, 0.0, 1.0)
     if blur > 0:
@@ -204,7 +203,7 @@ def _wall(
     return rgb.astype(np.float32)
 
 
-def _rand_colour(rng: np.random.Generator, sat: float = 0.6) -> np.ndarray:
+def rand_colour(rng: np.random.Generator, sat: float = 0.6) -> np.ndarray:
     hue = rng.random()
     c = np.array([abs(hue * 6 - 3) - 1, 2 - abs(hue * 6 - 2), 2 - abs(hue * 6 - 4)], np.float32)
     c = np.clip(c, 0, 1)
@@ -240,7 +239,7 @@ def _window(
     glass = tint * grad * np.ones((gh, gw_, 1), np.float32)
     kind = rng.choice(["curtains", "blinds", "objects", "dark", "curtains", "plants"])
     if kind == "curtains":
-        col = _rand_colour(rng, 0.5)
+        col = rand_colour(rng, 0.5)
         freq = rng.uniform(0.6, 1.4)
         cw = max(1, int(gw_ * rng.uniform(0.15, 0.45)))
         glass[:, :cw] = col * (0.8 + 0.2 * np.sin(np.arange(cw) * freq))[None, :, None]
@@ -262,7 +261,7 @@ def _window(
             )
             ow, oh = rng.integers(3, max(4, gw_ // 3)), rng.integers(3, max(4, gh // 3))
             col = (
-                _rand_colour(rng, 0.7)
+                rand_colour(rng, 0.7)
                 if kind == "objects"
                 else np.float32([0.1, 0.35, 0.1]) * rng.uniform(0.6, 1.3)
             )
@@ -298,7 +297,7 @@ def _window(
     rgb[max(0, y0 - fw) : y0, max(0, x0 - fw) : min(w, x1 + fw)] = frame_col * 0.7
 
 
-def _put_text(
+def put_text(
     img: np.ndarray, text: str, org, font: int, scale: float, colour: np.ndarray, thick: int
 ) -> None:
     """``cv2.putText`` on a float [0, 1] image (OpenCV 5 draws text on 8-bit images only)."""
@@ -310,11 +309,11 @@ def _put_text(
 
 def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     """A shop sign: a coloured panel with random letters (float RGB)."""
-    bg = _rand_colour(rng, 0.8)
+    bg = rand_colour(rng, 0.8)
     fg = np.float32([1, 1, 1]) - bg * rng.uniform(0.6, 1.0)
     img = np.ones((h, w, 3), np.float32) * bg
     n = int(rng.integers(3, 10))
-    text = "".join(rng.choice(list(_LETTERS), n))
+    text = "".join(rng.choice(list(LETTERS), n))
     font = int(
         rng.choice(
             [
@@ -329,7 +328,7 @@ def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     scale = min(0.9 * w / max(tw, 1), 0.7 * h / max(th, 1))
     thick = max(1, int(scale * 2))
     (tw, th), _ = cv2.getTextSize(text, font, scale, thick)
-    _put_text(img, text, ((w - tw) // 2, (h + th) // 2), font, scale, fg, thick)
+    put_text(img, text, ((w - tw) // 2, (h + th) // 2), font, scale, fg, thick)
     return img
 
 
@@ -369,7 +368,7 @@ def facade_texture(
     rgb = _wall(style, H, W, rng, (height_m / H, 1.0 / ppm), photo_seed=seed)
     aux = np.zeros((H, W), np.uint8)
     frame_col = (
-        np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else _rand_colour(rng, 0.3) * 0.7
+        np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else rand_colour(rng, 0.3) * 0.7
     )
     n_floors = max(1, int(height_m / floor_h))
     win_w = rng.uniform(0.8, 1.4)
@@ -402,7 +401,7 @@ def facade_texture(
                     np.float32([0.15, 0.15, 0.16]),
                 )
                 wid += 1
-        door_col = _rand_colour(rng, 0.4) * 0.6
+        door_col = rand_colour(rng, 0.4) * 0.6
         rgb[sh_top:H, door_x : door_x + door_w] = door_col
         rgb[sh_top + 8 : H - 40, door_x + 8 : door_x + door_w - 8] *= 0.6
         sign_h = int(0.6 * ppm)
@@ -415,7 +414,7 @@ def facade_texture(
     else:
         door_w, door_h = int(1.0 * ppm), int(2.2 * ppm)
         dx = int(rng.uniform(0.4, max(0.41, width_m - 1.5)) * ppm)
-        rgb[H - door_h : H, dx : dx + door_w] = _rand_colour(rng, 0.5) * 0.7
+        rgb[H - door_h : H, dx : dx + door_w] = rand_colour(rng, 0.5) * 0.7
         rgb[H - door_h + 10 : H - 10, dx + 8 : dx + door_w - 8] *= 0.75
         rgb[H - door_h - 6 : H - door_h, dx - 6 : dx + door_w + 6] = frame_col * 0.8
         cv2.circle(rgb, (dx + door_w - 12, H - door_h // 2), 3, (0.8, 0.7, 0.3), -1)
@@ -475,7 +474,7 @@ def facade_texture(
             if py + ph < H and px + pw < W and aux[py : py + ph, px : px + pw].max() == 0:
                 rgb[py : py + ph, px : px + pw] = sign_texture(rng, pw, ph)
     rgb = _ledge_snow(rgb, ledges, snow, seed, snow_pattern, texel)
-    return _finish(rgb, aux, blur=0.7)
+    return finish(rgb, aux, blur=0.7)
 
 
 # Snow on a ledge: depth (m) and the share of the ledge's length covered, per level 1..4.
@@ -548,7 +547,7 @@ def side_wall_texture(
             rng,
             np.float32([0.8, 0.8, 0.78]),
         )
-    return _finish(rgb, aux, blur=0.7)
+    return finish(rgb, aux, blur=0.7)
 
 
 def roof_texture(
@@ -575,7 +574,7 @@ def roof_texture(
         rgb = np.float32([0.33, 0.32, 0.31]) * (0.8 + 0.4 * g)
     aux = (200 + 55 * value_noise((H, W), rng, cell=10, octaves=2)).astype(np.uint8)
     rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
-    return _finish(rgb, aux, blur=0.6)
+    return finish(rgb, aux, blur=0.6)
 
 
 def _apply_snow(rgb: np.ndarray, aux: np.ndarray, snow: int, seed: int, pattern: int) -> np.ndarray:
@@ -766,301 +765,4 @@ def ground_texture(
             leaves = rng.random((H, W)) < 0.01
             rgb[leaves] = np.float32([0.65, 0.35, 0.1])
     rgb = _apply_snow(rgb, aux, snow, seed, snow_pattern)
-    return _finish(rgb, aux, blur=0.6)
-
-
-# ---------------------------------------------------------------- trees
-
-
-def tree_structure(seed: int, height_m: float, crown_r_m: float, texel: float = 0.03) -> dict:
-    """The season-independent part of a tree billboard: trunk/branches and leaf clusters.
-
-    Returns:
-      A dict with ``wood`` (H, W) float32 coverage of trunk and branches, ``leaf_rank``
-      (H, W) uint8 (a leaf texel appears when its rank is below the season's density),
-      ``leaf_shade`` (H, W) float32 and ``leaf_hue`` (H, W) float32 per-leaf variation,
-      ``bark`` (3,) colour.
-    """
-    rng = np.random.default_rng(seed)
-    width_m = 2 * crown_r_m + 0.4
-    W, H = pad16(width_m / texel), pad16(height_m / texel)
-    ppm = W / width_m
-    wood = np.zeros((H, W), np.float32)
-    trunk_top = H - int(rng.uniform(0.3, 0.45) * height_m * ppm)
-    cx = W // 2
-    tw = max(3, int(rng.uniform(0.12, 0.2) * ppm))
-    cv2.line(wood, (cx, H), (cx, trunk_top), 1.0, tw, cv2.LINE_AA)
-
-    def branch(x, y, ang, length, th, depth):
-        if depth == 0 or length < 6:
-            return
-        x2, y2 = x + length * np.sin(ang), y - length * np.cos(ang)
-        cv2.line(wood, (int(x), int(y)), (int(x2), int(y2)), 1.0, max(1, int(th)), cv2.LINE_AA)
-        for _ in range(2 if depth > 1 else 3):
-            branch(
-                x2,
-                y2,
-                ang + rng.normal(0, 0.55),
-                length * rng.uniform(0.55, 0.8),
-                th * 0.65,
-                depth - 1,
-            )
-
-    crown_h = trunk_top
-    for _ in range(int(rng.integers(3, 6))):
-        branch(cx, trunk_top, rng.normal(0, 0.6), crown_h * rng.uniform(0.3, 0.45), tw * 0.7, 5)
-    wood = np.clip(wood, 0, 1)
-    # Leaf clusters: many blobs inside the crown ellipse, each with its own rank and shade.
-    rank = np.full((H, W), 255, np.uint8)
-    shade = np.zeros((H, W), np.float32)
-    hue = np.zeros((H, W), np.float32)
-    ccx, ccy = cx, trunk_top * 0.5
-    ax, ay = W * 0.45, trunk_top * 0.52
-    n = int(ax * ay / 9)
-    for _ in range(n):
-        r = np.sqrt(rng.random())
-        a = rng.uniform(0, 2 * np.pi)
-        px, py = int(ccx + ax * r * np.cos(a)), int(ccy + ay * r * np.sin(a))
-        rad = int(rng.integers(2, 6))
-        rk = int(rng.integers(0, 250))
-        cv2.circle(rank, (px, py), rad, rk, -1)
-        cv2.circle(
-            shade,
-            (px, py),
-            rad,
-            float(0.55 + 0.45 * (1 - r) * rng.uniform(0.6, 1.0) + 0.2 * (py < ccy)),
-            -1,
-        )
-        cv2.circle(hue, (px, py), rad, float(rng.random()), -1)
-    return {
-        "wood": wood,
-        "leaf_rank": rank,
-        "leaf_shade": shade,
-        "leaf_hue": hue,
-        "bark": np.float32([0.30, 0.25, 0.20]) * rng.uniform(0.7, 1.2),
-    }
-
-
-def tree_texture(structure: dict, density: float, autumn: float, snow: int = 0) -> np.ndarray:
-    """Composes a tree billboard for a season.
-
-    Args:
-      structure: from ``tree_structure``.
-      density: fraction of leaf texels present (0 bare winter tree .. 1 full summer crown).
-      autumn: 0 green .. 1 full autumn colours (yellow, orange, red, brown).
-      snow: snow level; whitens the upper side of branches when > 0.
-
-    Returns:
-      RGBA uint8, aux = alpha.
-    """
-    wood, rank, shade, hue = (
-        structure["wood"],
-        structure["leaf_rank"],
-        structure["leaf_shade"],
-        structure["leaf_hue"],
-    )
-    leaf = (rank.astype(np.float32) < density * 250.0).astype(np.float32)
-    green = np.stack([0.16 + 0.08 * hue, 0.30 + 0.14 * hue, 0.08 + 0.05 * hue], -1)
-    fall = np.stack([0.55 + 0.25 * hue, 0.20 + 0.35 * hue, 0.05 + 0.04 * hue], -1)
-    # Each leaf turns at its own time: leaves with low hue change first.
-    turn = np.clip((autumn * 1.4 - hue) * 4.0, 0.0, 1.0)[..., None]
-    leaf_col = (green * (1 - turn) + fall * turn) * shade[..., None]
-    bark = structure["bark"]
-    if snow > 0:
-        bark = bark * 0.5 + 0.45
-    rgb = np.where(leaf[..., None] > 0, leaf_col, bark * (0.7 + 0.3 * wood[..., None]))
-    alpha = np.maximum(leaf, wood)
-    return _finish(rgb.astype(np.float32), (alpha * 255).astype(np.uint8), blur=0.5)
-
-
-# ---------------------------------------------------------------- cars, people, furniture
-
-
-_CAR_COLOURS = np.array(
-    [
-        [0.85, 0.85, 0.85],
-        [0.08, 0.08, 0.09],
-        [0.45, 0.46, 0.48],
-        [0.60, 0.10, 0.10],
-        [0.10, 0.18, 0.45],
-        [0.75, 0.75, 0.78],
-        [0.20, 0.30, 0.22],
-        [0.80, 0.65, 0.20],
-        [0.35, 0.20, 0.15],
-    ],
-    np.float32,
-)
-
-
-def car_textures(
-    seed: int, length_m: float, width_m: float, body_h: float, cabin_h: float, texel: float = 0.03
-) -> dict:
-    """Textures of one car's box faces: ``side_l``, ``side_r``, ``front``, ``back``, ``top``,
-    ``cabin_side_l/r``, ``cabin_front``, ``cabin_back``, ``cabin_top``. Aux = light emission."""
-    rng = np.random.default_rng(seed)
-    body = _CAR_COLOURS[rng.integers(len(_CAR_COLOURS))] * rng.uniform(0.85, 1.1)
-
-    def panel(wm, hm):
-        W, H = pad16(wm / texel), pad16(hm / texel)
-        g = value_noise((H, W), rng, cell=20, octaves=2)[..., None]
-        grad = np.linspace(1.1, 0.75, H, dtype=np.float32)[:, None, None]
-        return body * (0.92 + 0.12 * g) * grad, np.zeros((H, W), np.uint8), W / wm
-
-    out = {}
-    for side in ("side_l", "side_r"):
-        rgb, aux, ppm = panel(length_m, body_h)
-        H, W = aux.shape
-        for wx in (0.18, 0.78):  # wheels
-            cx = int(wx * W) if side == "side_l" else int((1 - wx) * W)
-            cv2.circle(rgb, (cx, H), int(0.36 * ppm), (0.05, 0.05, 0.05), -1, cv2.LINE_AA)
-            cv2.circle(rgb, (cx, H), int(0.2 * ppm), (0.55, 0.55, 0.56), -1, cv2.LINE_AA)
-        for dx in (0.38, 0.6):
-            cv2.line(rgb, (int(dx * W), 0), (int(dx * W), H), (0.05, 0.05, 0.05), 1, cv2.LINE_AA)
-            cv2.line(
-                rgb,
-                (int((dx + 0.12) * W), int(0.25 * H)),
-                (int((dx + 0.17) * W), int(0.25 * H)),
-                (0.2, 0.2, 0.2),
-                2,
-            )
-        rgb[H - int(0.12 * ppm) :] *= 0.35
-        out[side] = _finish(rgb, aux)
-    for end in ("front", "back"):
-        rgb, aux, ppm = panel(width_m, body_h)
-        H, W = aux.shape
-        lc = (0.95, 0.95, 0.85) if end == "front" else (0.7, 0.05, 0.05)
-        for lx in (0.12, 0.88):
-            cv2.ellipse(
-                rgb,
-                (int(lx * W), int(0.3 * H)),
-                (int(0.1 * W), int(0.1 * H)),
-                0,
-                0,
-                360,
-                lc,
-                -1,
-                cv2.LINE_AA,
-            )
-            cv2.ellipse(
-                aux,
-                (int(lx * W), int(0.3 * H)),
-                (int(0.1 * W), int(0.1 * H)),
-                0,
-                0,
-                360,
-                255 if end == "front" else 140,
-                -1,
-            )
-        rgb[int(0.55 * H) : int(0.8 * H), int(0.38 * W) : int(0.62 * W)] = (0.9, 0.9, 0.85)  # plate
-        _put_text(
-            rgb,
-            "".join(rng.choice(list(_LETTERS), 5)),
-            (int(0.39 * W), int(0.76 * H)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.25 * W / 60,
-            np.float32([0.1, 0.1, 0.2]),
-            1,
-        )
-        if end == "front":
-            rgb[int(0.35 * H) : int(0.5 * H), int(0.3 * W) : int(0.7 * W)] = 0.1
-        out[end] = _finish(rgb, aux)
-    rgb, aux, _ = panel(length_m, width_m)
-    out["top"] = _finish(rgb, aux)
-    glass = np.float32([0.12, 0.14, 0.17])
-    for name, (wm, hm) in {
-        "cabin_side_l": (length_m * 0.55, cabin_h),
-        "cabin_side_r": (length_m * 0.55, cabin_h),
-        "cabin_front": (width_m * 0.9, cabin_h),
-        "cabin_back": (width_m * 0.9, cabin_h),
-    }.items():
-        rgb, aux, ppm = panel(wm, hm)
-        H, W = aux.shape
-        b = max(2, int(0.06 * ppm))
-        sky = np.linspace(0.9, 0.5, H - 2 * b, dtype=np.float32)[:, None, None]
-        rgb[b : H - b, b : W - b] = glass * (1 + sky)
-        if name.startswith("cabin_side"):
-            rgb[b : H - b, W // 2 - b : W // 2 + b] = body * 0.5
-            if rng.random() < 0.5:  # a head in the car
-                cv2.circle(
-                    rgb,
-                    (int(W * rng.uniform(0.2, 0.4)), int(H * 0.55)),
-                    int(0.1 * ppm),
-                    (0.2, 0.15, 0.12),
-                    -1,
-                )
-        out[name] = _finish(rgb, aux)
-    rgb, aux, _ = panel(length_m * 0.55, width_m * 0.9)
-    out["cabin_top"] = _finish(rgb, aux)
-    return out
-
-
-def person_texture(seed: int, texel: float = 0.02) -> np.ndarray:
-    """A pedestrian cut-out 0.7 m x 1.75 m: head, torso, legs; aux = alpha."""
-    rng = np.random.default_rng(seed)
-    W, H = pad16(0.7 / texel), pad16(1.75 / texel)
-    rgb = np.zeros((H, W, 3), np.float32)
-    a = np.zeros((H, W), np.uint8)
-    cx = W // 2
-    skin = np.float32([0.85, 0.65, 0.5]) * rng.uniform(0.35, 1.05)
-    top = _rand_colour(rng, 0.7)
-    legs = (
-        np.float32([0.15, 0.18, 0.3]) * rng.uniform(0.5, 1.5)
-        if rng.random() < 0.6
-        else _rand_colour(rng, 0.4)
-    )
-    hr = int(0.11 / 1.75 * H)
-    cv2.circle(rgb, (cx, hr + 2), hr, skin.tolist(), -1, cv2.LINE_AA)
-    cv2.circle(a, (cx, hr + 2), hr, 255, -1)
-    cv2.ellipse(rgb, (cx, hr - 2), (hr, hr // 2 + 2), 0, 180, 360, (0.1, 0.07, 0.05), -1)
-    sh = int(0.22 * W)
-    torso = np.array(
-        [
-            [cx - sh, 2 * hr + 6],
-            [cx + sh, 2 * hr + 6],
-            [cx + sh - 2, int(0.55 * H)],
-            [cx - sh + 2, int(0.55 * H)],
-        ]
-    )
-    cv2.fillPoly(rgb, [torso], top.tolist())
-    cv2.fillPoly(a, [torso], 255)
-    for sgn in (-1, 1):  # arms and legs
-        cv2.line(
-            rgb,
-            (cx + sgn * sh, 2 * hr + 10),
-            (cx + sgn * (sh + 4), int(0.52 * H)),
-            (top * 0.8).tolist(),
-            7,
-        )
-        cv2.line(a, (cx + sgn * sh, 2 * hr + 10), (cx + sgn * (sh + 4), int(0.52 * H)), 255, 7)
-        lx = cx + sgn * int(rng.uniform(0.04, 0.12) * W)
-        cv2.line(rgb, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), legs.tolist(), 9)
-        cv2.line(a, (cx + sgn * 6, int(0.55 * H)), (lx, H - 4), 255, 9)
-        cv2.line(rgb, (lx, H - 4), (lx + 6, H - 4), (0.05, 0.05, 0.05), 5)
-    if rng.random() < 0.3:  # a bag
-        cv2.rectangle(
-            rgb,
-            (cx + sh, int(0.45 * H)),
-            (cx + sh + 10, int(0.6 * H)),
-            _rand_colour(rng, 0.5).tolist(),
-            -1,
-        )
-        cv2.rectangle(a, (cx + sh, int(0.45 * H)), (cx + sh + 10, int(0.6 * H)), 255, -1)
-    return _finish(rgb, a, blur=0.5)
-
-
-def plain_texture(
-    seed: int,
-    colour: tuple[float, float, float],
-    w: int = 16,
-    h: int = 64,
-    aux: int = 0,
-    bands: int = 0,
-) -> np.ndarray:
-    """Small painted-metal/concrete texture for poles, bins, hydrants, lamp heads."""
-    rng = np.random.default_rng(seed)
-    g = value_noise((h, w), rng, cell=4, octaves=2)[..., None]
-    rgb = np.float32(colour) * (0.85 + 0.3 * g)
-    for k in range(bands):
-        y = int((k + 1) * h / (bands + 1))
-        rgb[y : y + max(1, h // 32)] *= 0.6
-    return _finish(rgb.astype(np.float32), np.full((h, w), aux, np.uint8), blur=0.5)
+    return finish(rgb, aux, blur=0.6)

@@ -1,14 +1,14 @@
-"""Parked cars stay as long as cars do on that kind of street (scene.parked_car)."""
+"""Parked cars stay as long as cars do on that kind of street (traffic.parked_car)."""
 
 import numpy as np
 
-from rp_jax.sources.synthetic import scene
+from rp_jax.sources.synthetic import traffic
 
 
 def _timeline(vegetation, hours, slot=3, seed=7, step_h=0.25):
     t0 = 40 * 365 * 24.0  # some instant in 2010, in hours of the UNIX clock
     steps = range(int(hours / step_h))
-    return [scene.parked_car(seed, slot, vegetation, t0 + k * step_h) for k in steps]
+    return [traffic.parked_car(seed, slot, vegetation, t0 + k * step_h) for k in steps]
 
 
 def _stays(timeline):
@@ -47,7 +47,7 @@ def test_occupancy_follows_the_street():
     for veg in (0.2, 0.8):
         tl = _timeline(veg, 24 * 60, slot=1, step_h=1.0)
         occ = np.mean([c is not None for c in tl])
-        assert abs(occ - scene.parking_occupancy(veg)) < 0.15, (veg, occ)
+        assert abs(occ - traffic.parking_occupancy(veg)) < 0.15, (veg, occ)
 
 
 def test_residents_park_their_own_car_again():

@@ -8,7 +8,8 @@ import pytest
 
 from rp_jax import categories
 from rp_jax.sources.synthetic import textures as tx
-from rp_jax.sources.synthetic.render import contact_sheet, look_at, project, render
+from rp_jax.sources.synthetic.contact_sheet import contact_sheet
+from rp_jax.sources.synthetic.render import look_at, project, render
 from rp_jax.sources.synthetic.scene import Material, QuadSet, build_scene
 
 TZ = dt.timezone(dt.timedelta(hours=-5))
@@ -103,7 +104,7 @@ def _marker_scene(scene, centre):
         img = np.full((64, 64, 3), 0.9, np.float32)
         yy, xx = np.mgrid[0:64, 0:64]
         img *= 1 - 0.85 * np.exp(-((xx - 31.5) ** 2 + (yy - 31.5) ** 2) / (2 * 4.0**2))[..., None]
-        return tx._finish(img, np.zeros((64, 64), np.uint8), blur=0)
+        return tx.finish(img, np.zeros((64, 64), np.uint8), blur=0)
 
     scene.textures.register(key, tex, {})
     o = np.asarray(centre) + np.array([-0.3, 0.0, 0.3])
@@ -259,7 +260,13 @@ def test_flutter_is_smooth_seeded_and_off_when_calm():
 
 def test_contact_sheet():
     imgs = [np.full((48, 64, 3), v, np.uint8) for v in (0, 128, 255)]
-    sheet = contact_sheet(imgs, ["a", "b", "c"], columns=2, width=64)
-    assert sheet.ndim == 3 and sheet.shape[1] == 128 and sheet.shape[0] == 2 * (48 + 22)
-    with pytest.raises(ValueError):
+    sheet = contact_sheet(imgs, ["a", "b", "c"], columns=2, pad=4)
+    caption = 14  # max(14, 48 // 10)
+    assert sheet.shape == (2 * (48 + caption + 4) + 4, 2 * (64 + 4) + 4, 3)
+    np.testing.assert_array_equal(sheet[4:52, 4:68], imgs[0])  # first tile, top left
+    np.testing.assert_array_equal(sheet[4:52, 72:136], imgs[1])  # second, same row
+    np.testing.assert_array_equal(sheet[70:118, 4:68], imgs[2])  # third, next row
+    with pytest.raises(ValueError, match="3 frames but 1 labels"):
         contact_sheet(imgs, ["a"])
+    with pytest.raises(ValueError, match="same size"):
+        contact_sheet([imgs[0], imgs[0][:10]], ["a", "b"])

@@ -5,7 +5,8 @@ import datetime as dt
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic.scene import build_scene, dynamic_quads
+from rp_jax.sources.synthetic.scene import build_scene
+from rp_jax.sources.synthetic.traffic import dynamic_quads
 
 TZ = dt.timezone(dt.timedelta(hours=-5))
 
