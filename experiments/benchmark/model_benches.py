@@ -70,6 +70,19 @@ def _records(size: dict, config) -> dict[str, np.ndarray]:
     return rec
 
 
+def _fresh_model(size: dict, variant: Variant, batch: int, seed: int = 0):
+    """(config, records, freshly initialised train state) of a bench: ours and the peer
+    start from the same weights."""
+    import jax
+
+    from rp_jax import train
+
+    config = _model_config(size, variant, batch)
+    records = _records(size, config)
+    T = records["label"].shape[1]
+    return config, records, train.create_train_state(config, T, 100, jax.random.key(seed))
+
+
 def _batches(records: dict, batch: int, count: int) -> list[dict[str, np.ndarray]]:
     from rp_jax.datasets.input_pipeline import MODEL_KEYS
 
@@ -102,10 +115,7 @@ class JaxTrainBench(ModelBench):
 
         from rp_jax import platform, train
 
-        config = _model_config(self.size, self.variant, self.batch)
-        records = _records(self.size, config)
-        T = records["label"].shape[1]
-        state = train.create_train_state(config, T, 100, jax.random.key(0))
+        config, records, state = _fresh_model(self.size, self.variant, self.batch)
         mesh = platform.make_mesh(config.num_devices)
         # FLOPs of one step from XLA's cost analysis, on one device without sharding.
         lowered = jax.jit(lambda s, b: train.train_step(s, b, config)).lower(
@@ -151,13 +161,11 @@ class JaxPredictBench(ModelBench):
         from jax.sharding import NamedSharding
         from jax.sharding import PartitionSpec as P
 
-        from rp_jax import platform, predict, time_encoding, train
+        from rp_jax import platform, predict, time_encoding
         from rp_jax import schedule as schedule_lib
 
-        config = _model_config(self.size, self.variant, self.batch)
-        records = _records(self.size, config)
-        T = records["label"].shape[1]
-        params = train.create_train_state(config, T, 100, jax.random.key(0)).params
+        config, records, state = _fresh_model(self.size, self.variant, self.batch)
+        params = state.params
         tf = np.asarray(
             time_encoding.encode(
                 records["hour"],
@@ -213,10 +221,11 @@ def check_torch_equals_jax(size: dict, num_points: int = 16, seed: int = 0) -> d
     from rp_jax import losses, train
     from rp_jax import model as model_lib
 
-    config = _model_config(size, Variant("ref", "jax"), num_points)
-    records = _records({**size, "num_records": num_points}, config)
+    config, records, state = _fresh_model(
+        {**size, "num_records": num_points}, Variant("ref", "jax"), num_points, seed
+    )
+    params = state.params
     T = records["label"].shape[1]
-    params = train.create_train_state(config, T, 100, jax.random.key(seed)).params
     batch = _batches(records, num_points, 1)[0]
     x, xy, tf = (np.array(a) for a in train.model_inputs(batch, config))  # writable copies
     net = model_lib.create_model(config, T)
@@ -299,11 +308,9 @@ class TorchBench(ModelBench):
         self.batch, self.steps = size[f"{key}_batch"], size[f"{key}_steps"]
 
     def setup(self) -> dict[str, Any]:
-        import jax
         import torch
 
         from experiments.benchmark import torch_reference as tr
-        from rp_jax import train
 
         torch.set_num_threads(2)
         check = check_torch_equals_jax(self.size)
@@ -311,10 +318,9 @@ class TorchBench(ModelBench):
             1.0, check["feature_scale"]
         ):
             raise RuntimeError(f"the PyTorch reference is not the same network as ours: {check}")
-        config = _model_config(self.size, Variant("ref", "jax"), self.batch)
-        records = _records(self.size, config)
+        config, records, state = _fresh_model(self.size, Variant("ref", "jax"), self.batch)
         T = records["label"].shape[1]
-        params = train.create_train_state(config, T, 100, jax.random.key(0)).params
+        params = state.params
         self.module = tr.load_flax_params(tr.TorchRepeatabilityPredictor(T, 2), params)
         self.net = torch.compile(self.module) if self.variant.compile else self.module
         self.batches = _batches(records, self.batch, self.steps)

@@ -1,4 +1,4 @@
-"""``benchmark.json`` and ``benchmark.md``: the figures of a benchmark run (see ``stages.py``).
+"""``benchmark.json`` and ``benchmark.md``: the figures of a benchmark run (see the package).
 
 ``benchmark.json`` maps each stage to ``{"ours": {...}, "peer": {...}, "ratio": ..., "unit":
 ...}``; ``ratio`` is the median over rounds of ours/peer speed measured back to back (None

@@ -12,7 +12,10 @@ import os
 from pathlib import Path
 
 from experiments.benchmark import mapsum_stages, report
-from experiments.benchmark import stages as stages_lib
+from experiments.benchmark.config import SIZES, STAGE_VARIANTS
+from experiments.benchmark.groundtruth_stage import run_groundtruth_stage
+from experiments.benchmark.match_stage import run_match_stage
+from experiments.benchmark.model_stage import run_model_stage
 
 __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 
@@ -54,7 +57,7 @@ def run_benchmark(
       started: a timestamp for the report (default now).
       progress: tqdm bars.
       model_variants: per model stage, the variants to measure (names of
-        ``stages.VARIANTS``; default ``stages.STAGE_VARIANTS``, plus ``torch_compile``).
+        ``config.VARIANTS``; default ``config.STAGE_VARIANTS``, plus ``torch_compile``).
 
     Returns:
       Paths of ``benchmark.json`` and ``benchmark.md``.
@@ -62,8 +65,8 @@ def run_benchmark(
     unknown = [s for s in stages if s not in ALL_STAGES]
     if unknown:
         raise ValueError(f"unknown stage(s) {unknown}; expected some of {list(ALL_STAGES)}")
-    if size not in stages_lib.SIZES:
-        raise ValueError(f"unknown size {size!r}; expected one of {sorted(stages_lib.SIZES)}")
+    if size not in SIZES:
+        raise ValueError(f"unknown size {size!r}; expected one of {sorted(SIZES)}")
     started = started or dt.datetime.now().isoformat(timespec="seconds")
     results = {
         k: v
@@ -76,18 +79,18 @@ def run_benchmark(
             if model_variants and stage in model_variants:
                 variants = list(model_variants[stage])
             else:
-                variants = list(stages_lib.STAGE_VARIANTS[stage]) + (
+                variants = list(STAGE_VARIANTS[stage]) + (
                     ["torch_compile"] if torch_compile else []
                 )
-            entry = stages_lib.run_model_stage(stage, size, repeats, variants, progress=progress)
+            entry = run_model_stage(stage, size, repeats, variants, progress=progress)
         elif stage == "match":
-            entry = stages_lib.run_match_stage(size, repeats, progress=progress)
+            entry = run_match_stage(size, repeats, progress=progress)
         elif stage == "summarize":
             entry = mapsum_stages.run_summarize_stage(size, repeats, progress=progress)
         elif stage == "localize":
             entry = mapsum_stages.run_localize_stage(size, repeats, progress=progress)
         else:
-            entry = stages_lib.run_groundtruth_stage(size, repeats, progress=progress)
+            entry = run_groundtruth_stage(size, repeats, progress=progress)
         # The 1-minute load average around the stage: how shared the machine was.
         entry.update(
             {

@@ -1,4 +1,4 @@
-"""One benchmark configuration in its own process (see ``stages.py``; Sec. III-B/C, III-D).
+"""One benchmark configuration in its own process (see the package; Sec. III-B/C, III-D).
 
 Model stages::
 

@@ -17,9 +17,12 @@ import mmap
 import numpy as np
 import pytest
 
-from experiments.benchmark import stages
 from experiments.benchmark.__main__ import main
+from experiments.benchmark.config import SIZES
+from experiments.benchmark.match_stage import synthetic_descriptors
+from experiments.benchmark.model_benches import check_torch_equals_jax
 from experiments.benchmark.run import run_benchmark
+from experiments.benchmark.stats import cpu_peak, pairwise_ratio, summarize_samples
 
 HAVE_TORCH = importlib.util.find_spec("torch") is not None
 if HAVE_TORCH:
@@ -33,7 +36,7 @@ needs_torch = pytest.mark.skipif(not HAVE_TORCH,
 
 @needs_torch
 def test_torch_reference_equals_ours():
-    check = stages.check_torch_equals_jax(stages.SIZES["tiny"], num_points=8, seed=1)
+    check = check_torch_equals_jax(SIZES["tiny"], num_points=8, seed=1)
     assert check["output_max_abs_diff"] <= 1e-5
     assert check["feature_max_abs_diff"] <= 1e-5 * max(1.0, check["feature_scale"])
     assert check["feature_scale"] > 1e-3  # the encoder features are not all zero
@@ -86,12 +89,12 @@ def test_load_flax_params_rejects_other_sizes():
 
 
 def test_statistics_and_pairwise_ratio():
-    s = stages.summarize_samples([3.0, 1.0, 2.0])
+    s = summarize_samples([3.0, 1.0, 2.0])
     assert (s["median"], s["min"], s["max"]) == (2.0, 1.0, 3.0)
     # Pair by pair: round 1 is 2x, round 2 is 4x, round 3 is 1x -> median 2x (not 8/4).
-    assert stages.pairwise_ratio([2.0, 8.0, 1.0], [1.0, 2.0, 1.0]) == 2.0
+    assert pairwise_ratio([2.0, 8.0, 1.0], [1.0, 2.0, 1.0]) == 2.0
     with pytest.raises(ValueError):
-        stages.pairwise_ratio([1.0, 2.0], [1.0])
+        pairwise_ratio([1.0, 2.0], [1.0])
 
 
 def test_cpu_peak_from_cpuinfo():
@@ -99,15 +102,15 @@ def test_cpu_peak_from_cpuinfo():
         "processor\t: 0\nmodel name\t: Test Xeon\ncpu MHz\t\t: 2000.000\n"
         "flags\t\t: fpu sse avx2 fma avx512f amx_bf16\n"
     )
-    peak = stages.cpu_peak(info, num_cores=2)
+    peak = cpu_peak(info, num_cores=2)
     assert peak["isa"] == "AVX-512" and peak["amx_bf16"]
     assert peak["fp32_peak_flops"] == pytest.approx(2 * 2 * 16 * 2 * 2.0e9)
-    avx2 = stages.cpu_peak(info.replace(" avx512f", ""), num_cores=4)
+    avx2 = cpu_peak(info.replace(" avx512f", ""), num_cores=4)
     assert avx2["fp32_peak_flops"] == pytest.approx(4 * 2 * 8 * 2 * 2.0e9)
 
 
 def test_synthetic_descriptors_are_exact_sift_like():
-    descs = stages.synthetic_descriptors(3, 50, seed=2)
+    descs = synthetic_descriptors(3, 50, seed=2)
     assert len(descs) == 3 and all(d.shape == (50, 128) and d.dtype == np.float32 for d in descs)
     for d in descs:
         np.testing.assert_array_equal(d, np.round(d))
@@ -149,7 +152,7 @@ def test_report_shape(tiny_report):
             assert len(e[side]["samples"]) == 2
         # The top-level ratio is the pairwise median of the two sides' samples.
         assert e["ratio"] == pytest.approx(
-            stages.pairwise_ratio(e["ours"]["samples"], e["peer"]["samples"])
+            pairwise_ratio(e["ours"]["samples"], e["peer"]["samples"])
         )
     for stage in ("train", "predict"):
         e = results[stage]
@@ -164,7 +167,7 @@ def test_report_shape(tiny_report):
     assert results["match"]["identical"] is True
     gt = results["groundtruth"]
     assert gt["peer"] is None and gt["ratio"] is None
-    assert list(gt["ours"]["per_num_images"]) == [str(n) for n in stages.SIZES["tiny"]["gt_images"]]
+    assert list(gt["ours"]["per_num_images"]) == [str(n) for n in SIZES["tiny"]["gt_images"]]
     for v in gt["ours"]["per_num_images"].values():
         assert v["seconds"]["median"] > 0 and v["peak_rss_mb"] > 0 and v["interest_points"] > 0
     assert set(gt["quadratic_fit"]) >= {"a", "b", "c"}
@@ -247,9 +250,9 @@ def test_summarize_report_shape(tiny_sum_loc_report):
     assert list(results) == ["summarize", "localize"]
     e = results["summarize"]
     assert e["unit"] == "s" and e["prediction_cached"] is True and e["ratio"] > 0
-    sizes = [str(n) for n in stages.SIZES["tiny"]["sum_points"]]
+    sizes = [str(n) for n in SIZES["tiny"]["sum_points"]]
     assert list(e["ours"]["per_num_points"]) == sizes == list(e["peer"]["per_num_points"])
-    assert e["headline_points"] == stages.SIZES["tiny"]["sum_headline_points"]
+    assert e["headline_points"] == SIZES["tiny"]["sum_headline_points"]
     for side in ("ours", "peer"):
         assert e[side]["min"] <= e[side]["median"] <= e[side]["max"]
         assert len(e[side]["samples"]) == 2
@@ -264,7 +267,7 @@ def test_summarize_report_shape(tiny_sum_loc_report):
         assert e["maps"][n]["points"] == int(n) and e["maps"][n]["observations"] > 2 * int(n)
     # The headline ratio is the pairwise median of the headline size's rounds.
     assert e["ratio"] == pytest.approx(
-        stages.pairwise_ratio(
+        pairwise_ratio(
             [1 / s for s in e["ours"]["samples"]], [1 / s for s in e["peer"]["samples"]]
         )
     )
@@ -297,8 +300,8 @@ def test_summarize_skips_kcover_past_its_budget(monkeypatch):
     report says so with a projected time and never waits for it."""
     from experiments.benchmark import mapsum_stages
 
-    size = {**stages.SIZES["tiny"], "sum_points": (100, 1000, 10_000), "kcover_budget_s": 1.0}
-    monkeypatch.setitem(stages.SIZES, "fake", size)
+    size = {**SIZES["tiny"], "sum_points": (100, 1000, 10_000), "kcover_budget_s": 1.0}
+    monkeypatch.setitem(SIZES, "fake", size)
     calls = []
 
     def fake_worker(n, size_name, repeats, run_kcover, timeout_s):
