@@ -12,7 +12,8 @@ A trained workdir, for numpy in and numpy out::
     now = predict.at_time(scores, rp.schedule, datetime(2024, 12, 1, 17, 0))  # [N]
 
 ``at_time`` reads the paper's piecewise-linear repeatability function (Sec. III-A, Fig. 3)
-between the two timestamps around any time of the cycle, wrapping around the cycle.
+between the two timestamps around a time; it wraps around the cycle only for a schedule that
+covers the whole cycle (``TimeSchedule.covers_cycle``) or when asked (``wrap=True``).
 """
 
 from __future__ import annotations
@@ -150,30 +151,61 @@ def encode_times(times: Sequence[dt.datetime], config) -> np.ndarray:
                                            encoding=config.time_encoding))
 
 
-def at_time(scores, schedule: schedule_lib.TimeSchedule, when: dt.datetime | Sequence[dt.datetime]):
-    """Read repeatability at any time of the cycle by linear interpolation between slots.
+def at_time(scores, schedule: schedule_lib.TimeSchedule,
+            when: dt.datetime | Sequence[dt.datetime], *, wrap: bool | None = None):
+    """Read repeatability at any time by linear interpolation between timestamps.
 
-    Between the last timestamp of a cycle and the first of the next, the segment wraps around
-    the cycle (Sec. III-A's line segments, closed into a loop).
+    The paper's repeatability function is piecewise linear between the T timestamps
+    (Sec. III-A, Fig. 3). Whether it is defined between the last timestamp of a cycle and
+    the first of the next depends on the schedule: one that covers the whole cycle
+    (``schedule.covers_cycle``: hourly 0:00-23:00, the days of a year) closes into a loop and
+    wraps; one that stops for the night (08:00-18:00) has no data for 23:00, so such a time
+    raises instead of being silently read off the line from 18:00 to 8:00.
 
     Args:
       scores: [..., T] repeatability vectors.
       schedule: their timestamps.
       when: one datetime (applied to all) or one per leading row of ``scores``.
+      wrap: interpolate across the cycle boundary (True), or refuse times outside the
+        schedule's span (False). Default (None): ``schedule.covers_cycle``. Without
+        wrapping, a time within the schedule's tolerance before its first (after its
+        last) timestamp reads that timestamp's value, as it would be assigned to it.
 
     Returns:
       [...] scores at ``when``.
+
+    Raises:
+      ValueError: ``scores`` do not have T values, or (without wrapping) a time lies
+        outside the schedule's span; the message names the time and the span.
     """
     scores = np.asarray(scores)
     T = schedule.num_timestamps
     if scores.shape[-1] != T:
         raise ValueError(f"scores have {scores.shape[-1]} timestamps, "
                          f"schedule {schedule.name!r} has {T}")
+    wrap = schedule.covers_cycle if wrap is None else bool(wrap)
     whens = [when] if isinstance(when, dt.datetime) else list(when)
-    offsets = np.array([schedule.offset_of(w) for w in whens], np.float64)
     slots = np.asarray(schedule.offsets, np.float64)
-    ext = np.concatenate([slots, [slots[0] + schedule.period]])
-    o = np.where(offsets < slots[0], offsets + schedule.period, offsets)
+    if wrap:
+        offsets = np.array([schedule.offset_of(w) for w in whens], np.float64)
+        ext = np.concatenate([slots, [slots[0] + schedule.period]])
+        o = np.where(offsets < slots[0], offsets + schedule.period, offsets)
+    else:
+        spans = [schedule.span_offset(w) for w in whens]
+        outside = [i for i, v in enumerate(spans) if v is None]
+        if outside:
+            i = outside[0]
+            raise ValueError(
+                f"{whens[i].isoformat()} lies outside schedule {schedule.name!r} "
+                f"({schedule.span_text()})"
+                + (f", as do {len(outside) - 1} more of the {len(whens)} times"
+                   if len(outside) > 1 else "")
+                + f": its timestamps do not cover the whole {schedule.cycle}, so there is no "
+                "repeatability there; pass wrap=True to interpolate across the gap from "
+                f"{schedule.labels[-1]} to {schedule.labels[0]}")
+        # Inside the tolerance beyond either end: the end timestamp's value.
+        o = np.clip(np.array(spans, np.float64), slots[0], slots[-1])
+        ext = np.concatenate([slots, [slots[-1] + 1.0]])  # the last segment is never used
     j = np.clip(np.searchsorted(ext, o, side="right") - 1, 0, T - 1)
     w = (o - ext[j]) / (ext[j + 1] - ext[j])
     b_idx = (j + 1) % T
@@ -299,34 +331,17 @@ class Predictor:
             t = times[outside[0]]
             raise ValueError(
                 f"times: {len(outside)} of {len(times)} lie outside schedule "
-                f"{self.schedule.name!r} ({self.schedule.labels[0]}..{self.schedule.labels[-1]}"
-                f", +- {_duration(self.schedule.tolerance)}), e.g. {t.isoformat()} at index "
-                f"{outside[0]}; the predictor has no repeatability for them")
+                f"{self.schedule.name!r} ({self.schedule.span_text()}), e.g. {t.isoformat()} "
+                f"at index {outside[0]}; the predictor has no repeatability for them")
         if not times:
             return np.zeros((0, time_encoding.num_features(self.config.time_fields)), np.float32)
         return encode_times(times, self.config).astype(np.float32)
 
 
-def _duration(seconds: float) -> str:
-    return f"{seconds / 86400:g} d" if seconds >= 86400 else f"{seconds / 60:g} min"
-
-
 def _in_schedule(schedule: schedule_lib.TimeSchedule, when: dt.datetime) -> bool:
-    """Whether ``when`` lies where the schedule has timestamps to interpolate between.
-
-    A schedule whose gap across the end of the cycle is no longer than its longest gap
-    inside the cycle covers the whole cycle (hours of a day, the dates of a year); one that
-    stops for the night (08:00-18:00) covers its span, widened by its tolerance.
-    """
-    slots = np.asarray(schedule.offsets, np.float64)
-    wrap_gap = slots[0] + schedule.period - slots[-1]
-    if len(slots) > 1 and wrap_gap <= np.max(np.diff(slots)):
-        return True
-    o = schedule.offset_of(when)
-    tol = schedule.tolerance
-    # Also on the other side of the cycle boundary (a span reaching past midnight).
-    return any(slots[0] - tol <= v <= slots[-1] + tol
-               for v in (o, o - schedule.period, o + schedule.period))
+    """Whether ``when`` lies where the schedule has timestamps to interpolate between: anywhere
+    for a schedule that covers its cycle, else within its span widened by its tolerance."""
+    return schedule.covers_cycle or schedule.span_offset(when) is not None
 
 
 def load(workdir: str | os.PathLike, *, step: int | None = None,

@@ -109,6 +109,38 @@ class TimeSchedule:
         """Seconds from the start of the cycle of ``when`` (wall clock)."""
         return _offset_in_cycle(when, self.cycle)
 
+    @property
+    def covers_cycle(self) -> bool:
+        """Whether the timestamps cover the whole cycle, so that its line segments close
+        into a loop (Sec. III-A).
+
+        True when the gap from the last timestamp round to the first of the next cycle is no
+        longer than the longest gap between two timestamps inside the cycle: the hours of a
+        day (0:00-23:00), the days of a year, the 12 CMU dates. False for a schedule that
+        stops for the night (08:00-18:00): no data says what happens between 18:00 and 8:00.
+        """
+        if len(self.offsets) < 2:
+            return False
+        wrap_gap = self.offsets[0] + self.period - self.offsets[-1]
+        return wrap_gap <= max(b - a for a, b in zip(self.offsets, self.offsets[1:]))
+
+    def span_offset(self, when: dt.datetime) -> float | None:
+        """``when``'s offset in seconds, on the side of the cycle boundary where it lies
+        within the span ``offsets[0] - tolerance .. offsets[-1] + tolerance``, or None if it
+        lies outside (a span may reach past midnight or new year, hence the sides)."""
+        o = self.offset_of(when)
+        lo, hi = self.offsets[0] - self.tolerance, self.offsets[-1] + self.tolerance
+        for v in (o, o - self.period, o + self.period):
+            if lo <= v <= hi:
+                return float(v)
+        return None
+
+    def span_text(self) -> str:
+        """The span in words, e.g. ``"08:00..18:00 +- 10 min"``."""
+        tol = self.tolerance
+        tol_text = f"{tol / 86400:g} d" if tol >= 86400 else f"{tol / 60:g} min"
+        return f"{self.labels[0]}..{self.labels[-1]} +- {tol_text}"
+
     def slot_of(
         self, when: dt.datetime, *, strict: bool = True
     ) -> tuple[int, int] | None:

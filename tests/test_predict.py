@@ -91,8 +91,9 @@ def test_load_errors_name_what_is_missing(workdir, tmp_path):
         predict.load(other)
 
 
-def test_at_time_interpolates_between_slots_and_wraps():
-    s = schedule_lib.preset("webcam_clipart")  # 8:00, 8:30, ..., 18:00
+def test_at_time_interpolates_between_slots_and_refuses_the_night():
+    s = schedule_lib.preset("webcam_clipart")  # 8:00, 8:30, ..., 18:00, +- 10 min
+    assert not s.covers_cycle
     scores = np.zeros((2, 21), np.float32)
     scores[0, 0], scores[0, 1], scores[0, 20] = 1.0, 0.5, 0.0
     scores[1] = np.linspace(0, 1, 21)
@@ -100,8 +101,19 @@ def test_at_time_interpolates_between_slots_and_wraps():
     np.testing.assert_allclose(at, [0.75, 0.025], atol=1e-6)
     at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 18, 0))
     np.testing.assert_allclose(at, [0.0, 1.0])
-    # Between 18:00 and 8:00 of the next day the segment wraps: 1:00 is half way.
-    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 1, 0))
+    # Within the tolerance beyond an end: that end's value, not a line into the night.
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 7, 55))
+    np.testing.assert_allclose(at, [1.0, 0.0])
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 18, 10))
+    np.testing.assert_allclose(at, [0.0, 1.0])
+    # 23:00 has no data: it raises, naming the time and the span...
+    with pytest.raises(ValueError, match=r"2020-01-01T23:00:00 lies outside schedule "
+                                         r"'webcam_clipart' \(08:00\.\.18:00 \+- 10 min\)"):
+        predict.at_time(scores, s, dt.datetime(2020, 1, 1, 23, 0))
+    with pytest.raises(ValueError, match="as do 1 more of the 3"):
+        predict.at_time(scores, s, [dt.datetime(2020, 1, 1, h) for h in (9, 1, 20)])
+    # ... unless asked to wrap: between 18:00 and 8:00 of the next day, 1:00 is half way.
+    at = predict.at_time(scores, s, dt.datetime(2020, 1, 1, 1, 0), wrap=True)
     np.testing.assert_allclose(at, [0.5, 0.5], atol=1e-6)
     # One time per row.
     per_row = predict.at_time(scores, s,
@@ -109,6 +121,28 @@ def test_at_time_interpolates_between_slots_and_wraps():
     np.testing.assert_allclose(per_row, [1.0, 1.0])
     with pytest.raises(ValueError, match="timestamps"):
         predict.at_time(np.zeros((1, 5)), s, dt.datetime(2020, 1, 1))
+
+
+def test_at_time_wraps_by_default_on_a_schedule_that_covers_the_cycle():
+    s = schedule_lib.preset("hours_of_day")  # 0:00 ... 23:00
+    assert s.covers_cycle
+    scores = np.zeros(24, np.float32)
+    scores[23], scores[0] = 1.0, 0.0
+    # 23:30 is half way from 23:00 to the next day's 0:00.
+    np.testing.assert_allclose(predict.at_time(scores, s, dt.datetime(2020, 1, 1, 23, 30)), 0.5)
+    # Refusing to wrap leaves only the tolerance (30 min) past 23:00: 23:30 is inside, the
+    # last value; the same holds before 0:00 on the other side.
+    np.testing.assert_allclose(
+        predict.at_time(scores, s, dt.datetime(2020, 1, 1, 23, 30), wrap=False), 1.0)
+    # The CMU dates (Mar 04 .. Dec 21) close the year: the new-year gap is not the longest.
+    cmu = schedule_lib.preset("cmu_seasons")
+    assert cmu.covers_cycle
+    jan = predict.at_time(np.arange(12.0), cmu, dt.datetime(2021, 1, 20))
+    assert 0.0 < jan < 11.0  # between Dec 21 (11) and Mar 04 (0)
+    robotcar = schedule_lib.preset("robotcar")  # 09:00 .. 17:00
+    assert not robotcar.covers_cycle
+    with pytest.raises(ValueError, match="outside schedule 'robotcar'"):
+        predict.at_time(np.zeros(9), robotcar, dt.datetime(2020, 1, 1, 3, 0))
 
 
 # Issue 14, item 2: one validation path, no silent mis-scaling.
