@@ -29,9 +29,11 @@ __all__ = [
 class ModelBench:
     """A warmed-up train or predict loop of one variant; ``measure()`` times one run."""
 
-    stage: str
-    batch: int
-    steps: int
+    stage: str  # "train" or "predict": the SIZES keys of its batch and steps
+
+    def __init__(self, variant: Variant, size: dict):
+        self.variant, self.size = variant, size
+        self.batch, self.steps = size[f"{self.stage}_batch"], size[f"{self.stage}_steps"]
 
     def setup(self) -> dict[str, Any]:  # pragma: no cover - interface
         raise NotImplementedError
@@ -106,10 +108,6 @@ class JaxTrainBench(ModelBench):
 
     stage = "train"
 
-    def __init__(self, variant: Variant, size: dict):
-        self.variant, self.size = variant, size
-        self.batch, self.steps = size["train_batch"], size["train_steps"]
-
     def setup(self) -> dict[str, Any]:
         import jax
 
@@ -151,10 +149,6 @@ class JaxPredictBench(ModelBench):
     devices (or ``Predictor.__call__`` as shipped), numpy in and numpy out."""
 
     stage = "predict"
-
-    def __init__(self, variant: Variant, size: dict):
-        self.variant, self.size = variant, size
-        self.batch, self.steps = size["predict_batch"], size["predict_steps"]
 
     def setup(self) -> dict[str, Any]:
         import jax
@@ -303,9 +297,8 @@ class TorchBench(ModelBench):
     """The peer: ``torch_reference`` with the same weights, 2 threads, eager or compiled."""
 
     def __init__(self, stage: str, variant: Variant, size: dict):
-        self.stage, self.variant, self.size = stage, variant, size
-        key = "train" if stage == "train" else "predict"
-        self.batch, self.steps = size[f"{key}_batch"], size[f"{key}_steps"]
+        self.stage = stage
+        super().__init__(variant, size)
 
     def setup(self) -> dict[str, Any]:
         import torch
