@@ -25,7 +25,10 @@ __all__ = [
     "plot_average_curves",
     "plot_category_curves",
     "plot_examples",
+    "plot_learning_curve",
     "plot_own_date_contrast",
+    "pick_examples",
+    "coinciding",
     "save_figure",
 ]
 
@@ -60,23 +63,56 @@ def _upper_limit(curves: Mapping[str, object]) -> float:
     return 1.0 if peak > 0.6 else float(np.ceil(peak * 1.25 * 20) / 20)
 
 
+# One look per curve, in order, distinct in colour, line style, width and marker, so that
+# two curves that coincide both stay visible: a wide pale band with a thin dashed line on it.
+_CURVE_STYLES = (
+    {"color": "tab:blue", "ls": "-", "lw": 2.0, "marker": "o", "ms": 3, "zorder": 3},
+    {"color": "tab:red", "ls": "-", "lw": 1.6, "marker": "s", "ms": 3.5, "zorder": 4},
+    {"color": "tab:green", "ls": "-", "lw": 6.0, "alpha": 0.35, "marker": None, "zorder": 2},
+    {"color": "tab:orange", "ls": "--", "lw": 1.4, "marker": "x", "ms": 5, "zorder": 5},
+    {"color": "tab:purple", "ls": ":", "lw": 1.6, "marker": "^", "ms": 4, "zorder": 5},
+    {"color": "tab:brown", "ls": "-.", "lw": 1.4, "marker": "D", "ms": 3, "zorder": 5},
+)
+
+
+def coinciding(curves: Mapping[str, object], tolerance: float) -> dict[str, str]:
+    """{name: the earlier curve it coincides with}: the same timestamps have data and no
+    value differs by more than ``tolerance`` (drawn one on the other, one would hide)."""
+    means = {name: _mean_and_count(c)[0] for name, c in curves.items()}
+    names, out = list(means), {}
+    for i, b in enumerate(names):
+        for a in names[:i]:
+            ma, mb = means[a], means[b]
+            same_gaps = ma.shape == mb.shape and np.array_equal(np.isfinite(ma), np.isfinite(mb))
+            ok = np.isfinite(ma)
+            if same_gaps and ok.any() and np.max(np.abs(ma[ok] - mb[ok])) <= tolerance:
+                out[b] = a
+                break
+    return out
+
+
 def _draw(ax, curves: Mapping[str, object], slot_labels: Sequence[str]) -> None:
     x = np.arange(len(slot_labels))
-    for name, curve in curves.items():
+    top = _upper_limit(curves)
+    # Closer than a line's width at the figure's scale: the lines would cover each other.
+    on_top_of = coinciding(curves, tolerance=0.01 * top)
+    for k, (name, curve) in enumerate(curves.items()):
         mean, count = _mean_and_count(curve)
         if mean.shape != (len(slot_labels),):
             raise ValueError(
                 f"curve {name!r} has {mean.shape} values for {len(slot_labels)} timestamps"
             )
         label = name if count is None else f"{name} (n={int(count.max(initial=0))})"
+        if name in on_top_of:
+            label += f"\n  = {on_top_of[name]} (lines coincide)"
         # Timestamps without data are skipped (not zeros); the others are joined by line
         # segments, as the paper draws a repeatability function (Sec. III-A).
         ok = np.isfinite(mean)
-        ax.plot(x[ok], mean[ok], marker="o", markersize=3, linewidth=1.5, label=label)
+        ax.plot(x[ok], mean[ok], label=label, **_CURVE_STYLES[k % len(_CURVE_STYLES)])
     step = max(1, math.ceil(len(slot_labels) / 12))
     ax.set_xticks(x[::step])
     ax.set_xticklabels([slot_labels[i] for i in x[::step]], rotation=45, ha="right")
-    ax.set_ylim(0.0, _upper_limit(curves))
+    ax.set_ylim(0.0, top)
     ax.set_xlim(-0.5, len(slot_labels) - 0.5)
     ax.grid(True, alpha=0.3)
 
@@ -198,8 +234,8 @@ def plot_examples(
         ax = fig.add_subplot(n, 3, 3 * i + 3)
         mask = np.asarray(ex.get("label_mask", np.ones(len(slot_labels), bool)), bool)
         label = np.asarray(ex["label"], np.float64)
-        ax.plot(x[mask], label[mask], marker="o", markersize=3, label="ground truth")
-        ax.plot(x, np.asarray(ex["pred"]), marker="s", markersize=3, label="prediction")
+        ax.plot(x[mask], label[mask], label="ground truth", **_CURVE_STYLES[0])
+        ax.plot(x, np.asarray(ex["pred"]), label="prediction", **_CURVE_STYLES[1])
         ax.set_ylim(0.0, 1.05)
         ax.set_xticks(x[::step])
         ax.set_xticklabels(
@@ -224,6 +260,105 @@ def _distinct(candidates, xy, n: int, cell: float = 24.0) -> list[int]:
         if len(out) == n:
             break
     return out
+
+
+def pick_examples(label, label_mask, xy, n: int = 6, *, seed: int = 0) -> list[int]:
+    """Indices of ``n`` test points whose ground truth has a shape to show (Figs. 7/8).
+
+    Chosen from the labels alone, never from the predictions or their error, so the figure
+    is a fair sample: points with labels at no fewer than half the timestamps whose label
+    range (max - min) is at least half the widest range, drawn at random (``seed``) at
+    distinct image places, and shown by decreasing range.
+
+    Args:
+      label: [N, T] ground truth.
+      label_mask: [N, T] which labels exist.
+      xy: [N, 2] pixel positions (one example per place).
+      n: how many.
+      seed: the draw.
+    """
+    label = np.asarray(label, np.float64)
+    mask = np.asarray(label_mask, bool)
+    T = label.shape[1]
+    masked = np.where(mask, label, np.nan)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = np.nan_to_num(np.nanmax(masked, 1) - np.nanmin(masked, 1), nan=0.0)
+    enough = mask.sum(1) >= max(2, (T + 1) // 2)
+    if not enough.any():
+        enough = mask.sum(1) >= 1
+    cut = 0.5 * spread[enough].max(initial=0.0)
+    pool = np.flatnonzero(enough & (spread >= cut))
+    order = np.random.default_rng(seed).permutation(pool)
+    picked = _distinct(order, xy, n)
+    if len(picked) < n:  # few places: fill with the next widest ranges
+        rest = [int(i) for i in np.argsort(-spread, kind="stable") if int(i) not in picked]
+        picked += rest[: n - len(picked)]
+    return sorted(picked, key=lambda i: -spread[i])
+
+
+def plot_learning_curve(
+    runs: Mapping[str, Sequence[Mapping[str, float]]],
+    out: str | Path,
+    *,
+    title: str = "Learning curve",
+) -> Path:
+    """Training loss and validation MAE per epoch, read from ``metrics.jsonl`` records.
+
+    Args:
+      runs: name -> the records of one training run (``epoch``, ``train_mse``, and on
+        validated epochs ``val_mse`` and ``val_mae``); several runs share the panels.
+      out: PNG path.
+      title: figure title.
+
+    Returns:
+      ``out``.
+    """
+    runs = {name: [r for r in recs if "epoch" in r] for name, recs in runs.items()}
+    if not any(runs.values()):
+        raise ValueError("no epoch record to plot")
+    fig = _new_figure(10.0, 3.6)
+    ax_loss, ax_mae = fig.subplots(1, 2)
+    any_val = False
+    for k, (name, recs) in enumerate(runs.items()):
+        style = {"color": f"C{k}", "lw": 1.8, "ls": "-", "marker": "o", "ms": 4}
+        prefix = f"{name}: " if len(runs) > 1 else ""
+        tr = [(r["epoch"], r["train_mse"]) for r in recs if r.get("train_mse") is not None]
+        if tr:
+            ax_loss.plot(*zip(*tr), label=f"{prefix}train (MSE, the paper's loss)", **style)
+        val = [r for r in recs if r.get("val_mae") is not None]
+        if val:
+            any_val = True
+            dashed = {**style, "ls": "--", "marker": "s"}
+            ax_loss.plot([r["epoch"] for r in val], [r["val_mse"] for r in val],
+                         label=f"{prefix}validation (MSE)", **dashed)
+            ax_mae.plot([r["epoch"] for r in val], [r["val_mae"] for r in val],
+                        label=f"{prefix}validation MAE", **dashed)
+            best = [r for r in val if r.get("best")]
+            if best:  # the epoch rp_jax.train keeps: the lowest validation MSE
+                b = best[-1]
+                for ax, key in ((ax_loss, "val_mse"), (ax_mae, "val_mae")):
+                    ax.plot([b["epoch"]], [b[key]], marker="*", ms=12, ls="none",
+                            color=style["color"],
+                            label=f"{prefix}kept epoch (lowest validation MSE)")
+    for ax, ylabel in ((ax_loss, "loss"), (ax_mae, "mean absolute error")):
+        ax.set_xlabel("epoch")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        ax.xaxis.get_major_locator().set_params(integer=True)
+    ax_loss.set_title("training loss per epoch")
+    ax_loss.legend(loc="best", fontsize="small")
+    ax_mae.set_title("validation MAE per epoch")
+    if any_val:
+        ax_mae.legend(loc="best", fontsize="small")
+    else:
+        ax_mae.text(0.5, 0.5, "no validation split in this run", ha="center", va="center",
+                    transform=ax_mae.transAxes)
+        ax_mae.set_xticks([])
+        ax_mae.set_yticks([])
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, out)
 
 
 def experiment_figures(
@@ -260,19 +395,13 @@ def experiment_figures(
     ]
     mask = test["label_mask"].astype(bool)
     err = (np.abs(pred - test["label"]) * mask).sum(1) / np.maximum(mask.sum(1), 1)
-    order = np.argsort(err)
-    # Good cases: low error among points whose curve is not flat (an informative example).
-    masked = np.where(mask, test["label"], np.nan)
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        spread = np.nanmax(masked, 1) - np.nanmin(masked, 1)
-    varied = set(np.flatnonzero(spread > 0.2).tolist())
-    good_pool = [i for i in order if i in varied] or list(order)
-    picks = [("good", i) for i in _distinct(good_pool, test["xy"], 3)]
-    picks += [("bad", i) for i in _distinct(list(order[::-1]), test["xy"], 3)]
+    # Chosen by the ground truth's shape, not by the predictions' error (a fair sample).
+    picks = pick_examples(test["label"], mask, test["xy"], 6, seed=config.get("seed", 0))
     examples = []
-    for kind, i in picks:
+    for i in picks:
         vp, image_id = str(test["viewpoint"][i]), str(test["image_id"][i])
+        known = test["label"][i][mask[i]]
+        spread = float(np.ptp(known)) if known.size else float("nan")
         image = image_loader(vp, image_id) if image_loader else None
         examples.append(
             {
@@ -282,7 +411,8 @@ def experiment_figures(
                 "label_mask": mask[i],
                 "image": image,
                 "xy": test["xy"][i],
-                "title": f"{kind}: MAE {err[i]:.3f}, {vp}/{image_id}"[:70],
+                "title": f"label range {spread:.2f}, MAE {err[i]:.3f}\n"
+                f"{vp}/{Path(image_id).name}",
             }
         )
     paths.append(
@@ -290,7 +420,8 @@ def experiment_figures(
             examples,
             labels,
             workdir / "fig7_examples.png",
-            title=f"Test interest points (3 good, 3 bad by MAE), {name}",
+            title=f"Test interest points with varying ground truth (chosen by label range, "
+            f"not by error), {name}",
         )
     )
     if "per_category" in metrics:

@@ -95,3 +95,64 @@ def test_own_date_contrast_by_hand_and_png(tmp_path):
 def test_low_curves_get_a_readable_axis():
     assert plots._upper_limit({"a": np.array([0.1, 0.16, np.nan])}) == pytest.approx(0.2)
     assert plots._upper_limit({"a": np.array([0.2, 0.9])}) == 1.0
+
+
+def test_coinciding_curves_both_stay_visible_and_the_legend_says_so(tmp_path):
+    labels = preset("webcam_clipart").labels
+    base = np.linspace(0.1, 0.3, len(labels))
+    # The order of experiment_figures' Fig. 6: the two baselines' means coincide.
+    curves = {"ground truth": base + 0.05, "prediction": base + 0.1, "per-slot mean": base,
+              "slot-conditioned": base + 1e-4}
+    assert plots.coinciding(curves, tolerance=0.005) == {"slot-conditioned": "per-slot mean"}
+    assert plots.coinciding({"a": base, "b": base + 0.1}, tolerance=0.005) == {}
+    out = plots.plot_average_curves(curves, labels, tmp_path / "fig6.png")
+    image = cv2.imread(str(out))
+    hue = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    saturated = hue[..., 1] > 30
+
+    def pixels_of(bgr):  # pixels near a style's colour (matplotlib's tab: palette)
+        return int((saturated & (np.abs(image.astype(int) - bgr).sum(-1) < 90)).sum())
+
+    # The wide pale band (green) shows beside the thin dashed line (orange) drawn on it.
+    assert pixels_of((181, 222, 181)) > 200  # tab:green (44, 160, 44) at alpha 0.35 on white
+    assert pixels_of((14, 127, 255)) > 100  # tab:orange (255, 127, 14)
+    # The legend names the coincidence (the label is built from the curves' names).
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    ax = fig.add_subplot()
+    plots._draw(ax, curves, labels)
+    texts = [t for t in ax.get_legend_handles_labels()[1]]
+    assert any("= per-slot mean (lines coincide)" in t for t in texts)
+
+
+def test_examples_are_chosen_by_label_range_not_error():
+    rng = np.random.default_rng(0)
+    n, T = 400, 12
+    label = np.clip(rng.normal(0.02, 0.01, (n, T)), 0, 1)  # mostly flat, near zero
+    varied = np.arange(0, n, 20)  # 20 points with a shape
+    label[varied] = np.sin(np.linspace(0, np.pi, T))[None] * rng.uniform(0.5, 1, (20, 1))
+    mask = np.ones((n, T), bool)
+    mask[varied[:5], 1:] = False  # too few labels to show a curve
+    xy = np.stack([np.arange(n) * 30.0, np.zeros(n)], 1)  # all at distinct places
+    picks = plots.pick_examples(label, mask, xy, 6, seed=0)
+    assert len(picks) == 6 and set(picks) <= set(varied[5:].tolist())
+    spread = np.ptp(label[picks], 1)
+    assert np.all(np.diff(spread) <= 0)  # shown by decreasing range
+    assert picks == plots.pick_examples(label, mask, xy, 6, seed=0)  # reproducible
+
+
+def test_learning_curve_png(tmp_path):
+    records = [
+        {"epoch": e, "step": 10 * e, "train_mse": 1.0 / e, "val_mse": 0.8 / e,
+         "val_mae": 0.2 - 0.01 * e, "best": e < 3}
+        for e in range(1, 5)
+    ]
+    out = plots.plot_learning_curve({"rp": records}, tmp_path / "learning_curve.png")
+    assert _coloured_pixels(out) > 100
+    no_val = [{"epoch": 1, "train_mse": 1.0}, {"epoch": 2, "train_mse": 0.5}]
+    two = plots.plot_learning_curve({"a": records, "b": no_val}, tmp_path / "two.png")
+    assert _coloured_pixels(two) > _coloured_pixels(
+        plots.plot_learning_curve({"b": no_val}, tmp_path / "one.png"))
+    with pytest.raises(ValueError, match="no epoch"):
+        plots.plot_learning_curve({"a": []}, tmp_path / "none.png")
