@@ -29,7 +29,7 @@ neither.
 
 One module each: ``config`` (sizes, variants), ``stats`` (median, pairwise ratio, CPU
 peak), ``model_benches`` (what a worker runs), ``orchestration`` (workers and their
-protocol), the stages ``model_stage``, ``match_stage``, ``groundtruth_stage`` and
-``mapsum_stages`` (Sec. V), and ``run.py``, which runs the stages asked for and writes the
-report (``report.py``).
+protocol), the stages ``model_stage``, ``match_stage``, ``groundtruth_stage``,
+``summarize_stage`` and ``localize_stage`` (Sec. V), and ``run.py``, which runs the stages
+asked for and writes the report (``report.py``).
 """

@@ -1,8 +1,8 @@
 """Run benchmark stages and write the report (the library behind ``__main__``).
 
 ``run_benchmark(stages, out_dir, ...)`` is what the command line calls; notebooks and tests
-call it too. See ``stages.py`` (predictor, ground truth) and ``mapsum_stages.py`` (map
-summarization and localization, Sec. V) for what each stage measures and how.
+call it too. Each stage's module (``model_stage``, ``match_stage``, ``groundtruth_stage``,
+``summarize_stage``, ``localize_stage``) says what it measures and how.
 """
 
 from __future__ import annotations
@@ -11,11 +11,13 @@ import datetime as dt
 import os
 from pathlib import Path
 
-from experiments.benchmark import mapsum_stages, report
+from experiments.benchmark import report
 from experiments.benchmark.config import SIZES, STAGE_VARIANTS
 from experiments.benchmark.groundtruth_stage import run_groundtruth_stage
+from experiments.benchmark.localize_stage import run_localize_stage
 from experiments.benchmark.match_stage import run_match_stage
 from experiments.benchmark.model_stage import run_model_stage
+from experiments.benchmark.summarize_stage import run_summarize_stage
 
 __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 
@@ -86,9 +88,9 @@ def run_benchmark(
         elif stage == "match":
             entry = run_match_stage(size, repeats, progress=progress)
         elif stage == "summarize":
-            entry = mapsum_stages.run_summarize_stage(size, repeats, progress=progress)
+            entry = run_summarize_stage(size, repeats, progress=progress)
         elif stage == "localize":
-            entry = mapsum_stages.run_localize_stage(size, repeats, progress=progress)
+            entry = run_localize_stage(size, repeats, progress=progress)
         else:
             entry = run_groundtruth_stage(size, repeats, progress=progress)
         # The 1-minute load average around the stage: how shared the machine was.

@@ -45,11 +45,11 @@ def _summarize(argv: list[str]) -> int:
         sys.stderr.write(__doc__)
         return 2
     try:
-        from experiments.benchmark import mapsum_stages
         from experiments.benchmark.config import SIZES
+        from experiments.benchmark.summarize_stage import summarize_worker
 
         size = SIZES[argv[1]]
-        for msg in mapsum_stages.summarize_worker(int(argv[0]), size, int(argv[2]), argv[3] == "1"):
+        for msg in summarize_worker(int(argv[0]), size, int(argv[2]), argv[3] == "1"):
             _send(msg)
     except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
         traceback.print_exc()

@@ -193,10 +193,10 @@ def test_rerun_of_one_stage_keeps_the_others(tiny_report):
 
 
 def test_synthetic_street_map_is_a_valid_map_for_both_methods():
-    from experiments.benchmark import mapsum_stages
+    from experiments.benchmark import summarize_stage
     from rp_jax.mapsum import kcover_keep, keep_count, partition, repeatability_keep
 
-    mp, rep = mapsum_stages.synthetic_street_map(3000, num_timestamps=6, seed=3)
+    mp, rep = summarize_stage.synthetic_street_map(3000, num_timestamps=6, seed=3)
     assert mp.num_points == 3000 and rep.shape == (3000, 6) and rep.dtype == np.float32
     assert 0 <= rep.min() and rep.max() <= 1
     lengths = mp.track_length
@@ -226,10 +226,10 @@ def _touch_fresh_pages(num_mb: int) -> None:
 
 
 def test_memory_probe_sees_an_allocation_after_a_larger_one():
-    from experiments.benchmark import mapsum_stages
+    from experiments.benchmark import summarize_stage
 
     _touch_fresh_pages(64)  # a 64 MB peak before the probe
-    with mapsum_stages.memory_probe() as mem:
+    with summarize_stage.memory_probe() as mem:
         _touch_fresh_pages(16)
     assert mem.peak_mb > 0
     if mem.method.startswith("VmHWM"):
@@ -298,7 +298,7 @@ def test_localize_report_shape(tiny_sum_loc_report):
 def test_summarize_skips_kcover_past_its_budget(monkeypatch):
     """K-cover is not run at a size once the previous size took longer than the budget; the
     report says so with a projected time and never waits for it."""
-    from experiments.benchmark import mapsum_stages
+    from experiments.benchmark import summarize_stage
 
     size = {**SIZES["tiny"], "sum_points": (100, 1000, 10_000), "kcover_budget_s": 1.0}
     monkeypatch.setitem(SIZES, "fake", size)
@@ -314,8 +314,8 @@ def test_summarize_skips_kcover_past_its_budget(monkeypatch):
             runs.append({"measure": {**kc, **common}})
         return [{"map": {"points": n, "observations": 3 * n}}] + runs, None
 
-    monkeypatch.setattr(mapsum_stages, "_run_summarize_worker", fake_worker)
-    e = mapsum_stages.run_summarize_stage("fake", 1, progress=False)
+    monkeypatch.setattr(summarize_stage, "_run_summarize_worker", fake_worker)
+    e = summarize_stage.run_summarize_stage("fake", 1, progress=False)
     assert calls == [(100, True), (1000, False), (10_000, False)]
     skipped = e["peer"]["per_num_points"]["1000"]
     assert skipped["projected_seconds"] == pytest.approx(20.0)
