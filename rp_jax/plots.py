@@ -346,18 +346,20 @@ def plot_learning_curve(
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
         ax.xaxis.get_major_locator().set_params(integer=True)
+    # Legends below the panels: with several runs they would cover the curves.
+    below = {"loc": "upper center", "bbox_to_anchor": (0.5, -0.2), "fontsize": "small"}
+    fig.subplots_adjust(top=0.84, wspace=0.3)
     ax_loss.set_title("training loss per epoch")
-    ax_loss.legend(loc="best", fontsize="small")
+    ax_loss.legend(**below)
     ax_mae.set_title("validation MAE per epoch")
     if any_val:
-        ax_mae.legend(loc="best", fontsize="small")
+        ax_mae.legend(**below)
     else:
         ax_mae.text(0.5, 0.5, "no validation split in this run", ha="center", va="center",
                     transform=ax_mae.transAxes)
         ax_mae.set_xticks([])
         ax_mae.set_yticks([])
     fig.suptitle(title)
-    fig.tight_layout()
     return save_figure(fig, out)
 
 

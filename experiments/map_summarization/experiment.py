@@ -50,6 +50,7 @@ import ml_collections
 import numpy as np
 from tqdm.auto import tqdm
 
+from experiments import provenance
 from experiments.map_summarization import report
 from experiments.map_summarization.train import train_cmu_predictor, train_predictor
 from experiments.sec4a import experiment
@@ -777,8 +778,13 @@ def run(
             labels=labels,
         ),
     ]
+    rp_runs = {"rp (RobotCar-like)": workdir / "rp"}
+    if metrics["cmu_rp_training"] is not None:
+        rp_runs[f"rp_cmu (without slice {m.slice})"] = workdir / f"rp_cmu_without_slice{m.slice}"
+    figures += experiment.learning_curve(workdir, rp_runs, title="Training the predictors")
     timings["figures_s"] = time.perf_counter() - tic
     metrics["figures"] = [f.name for f in figures]
+    metrics["provenance"] = provenance.gather()
     metrics["timings"] = {
         **{k: round(v, 2) for k, v in timings.items()},
         "per_seed": {str(s["seed"]): s["timings"] for s in per_seed},

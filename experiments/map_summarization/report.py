@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from experiments import provenance
+
 __all__ = ["markdown"]
 
 ALPHA = 0.05
@@ -197,5 +199,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         "## Wall time",
         "",
         ", ".join(f"{k[:-2]} {v:.0f} s" for k, v in t.items() if k.endswith("_s")) + ".",
+        "",
+        *provenance.markdown(metrics.get("provenance")),
     ]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines).rstrip("\n") + "\n"

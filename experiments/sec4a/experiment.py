@@ -22,6 +22,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
+from experiments import provenance
 from rp_jax import categories, evaluation, files
 from rp_jax import schedule as schedule_lib
 
@@ -35,6 +36,9 @@ __all__ = [
     "write_json",
     "read_json",
     "read_jsonl",
+    "learning_curve",
+    "redraw_figures",
+    "image_loader",
     "subset",
 ]
 
@@ -224,17 +228,61 @@ def run(
 
     t0 = time.perf_counter()
     figures = plots.experiment_figures(
-        workdir, metrics, test, pred, schedule, config, image_loader=_image_loader(config)
+        workdir, metrics, test, pred, schedule, config, image_loader=image_loader(config)
     )
+    figures += learning_curve(workdir, {"RP": workdir}, title=f"Training the RP, {config.dataset}"
+                              f" ({config.data_config})")
     timings["figures_s"] = time.perf_counter() - t0
     metrics["figures"] = [str(Path(f).name) for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
+    metrics["provenance"] = provenance.gather()
     write_json(workdir / "metrics.json", metrics)
     files.write_text(workdir / "report.md", report_markdown(metrics, config))
     return metrics
 
 
-def _image_loader(config):
+def redraw_figures(workdir: str | os.PathLike) -> list[Path]:
+    """Draw a finished run's figures again, e.g. after the figures' code changed.
+
+    From what the run stored: ``metrics.json`` (Fig. 6 and per-category curves),
+    ``metrics.jsonl`` (learning curve) and, since predictions are not stored, Figs. 7/8 from
+    the test split's records (the dataset must still be built) through the workdir's
+    predictor. The predictions must reproduce the stored test MAE (else the dataset or the
+    checkpoint changed since, and the figures would not be the run's). Rewrites
+    ``metrics.json``'s figure list and ``report.md``; no number is recomputed.
+
+    Raises:
+      ValueError: the test split or the predictions are not those of the run.
+    """
+    from rp_jax import plots, predict
+    from rp_jax.datasets import loading
+
+    workdir = Path(workdir).absolute()
+    config = ml_collections.ConfigDict(read_json(workdir / "config.json"))
+    metrics = read_json(workdir / "metrics.json")
+    schedule = schedule_lib.preset(config.schedule)
+    keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
+    test = loading.load_columns(config.dataset, "test", keys=keys, config=config.data_config,
+                                data_dir=config.data_dir or None)
+    if len(test["label"]) != metrics["counts"]["test"]:
+        raise ValueError(f"the test split now has {len(test['label'])} points, the run had "
+                         f"{metrics['counts']['test']}: the dataset changed since {workdir}")
+    pred = rp_predictions(predict.load(workdir), config, test)
+    mae = evaluation.masked_errors(pred, test["label"], test["label_mask"].astype(bool))["mae"]
+    if abs(mae - metrics["test_mae"]) > 1e-4:
+        raise ValueError(f"the predictions give test MAE {mae:.5f}, the run stored "
+                         f"{metrics['test_mae']:.5f}: the dataset or checkpoint changed")
+    figures = plots.experiment_figures(workdir, metrics, test, pred, schedule, config,
+                                       image_loader=image_loader(config))
+    figures += learning_curve(workdir, {"RP": workdir}, title=f"Training the RP, {config.dataset}"
+                              f" ({config.data_config})")
+    metrics["figures"] = [Path(f).name for f in figures]
+    write_json(workdir / "metrics.json", metrics)
+    files.write_text(workdir / "report.md", report_markdown(metrics, config))
+    return figures
+
+
+def image_loader(config):
     """(viewpoint, image_id) -> RGB of the dataset's images, for drawing keypoints; None if
     unreadable."""
     from rp_jax.datasets import builder as builder_lib
@@ -263,6 +311,20 @@ def _image_loader(config):
         return None if capture is None else dataset.load_image(capture)
 
     return load
+
+
+def learning_curve(workdir: Path, runs: dict[str, Path], *, title: str) -> list[Path]:
+    """``learning_curve.png`` in ``workdir``: train loss and validation MAE per epoch of each
+    training run in ``runs`` (name -> its workdir, read from its ``metrics.jsonl``); [] when
+    no run has an epoch record."""
+    from rp_jax import plots
+
+    records = {name: read_jsonl(Path(d) / "metrics.jsonl") for name, d in runs.items()}
+    records = {name: recs for name, recs in records.items() if any("epoch" in r for r in recs)}
+    if not records:
+        return []
+    return [plots.plot_learning_curve(records, Path(workdir) / "learning_curve.png",
+                                      title=title)]
 
 
 def read_json(path: Path):
@@ -399,4 +461,5 @@ def report_markdown(metrics: dict, config) -> str:
         lines.append(f"![{f}]({f})")
     t = metrics.get("timings", {})
     lines += ["", "## Wall time", "", ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in t.items()) + "."]
-    return "\n".join(lines) + "\n"
+    lines += ["", *provenance.markdown(metrics.get("provenance"))]
+    return "\n".join(lines).rstrip("\n") + "\n"

@@ -100,6 +100,8 @@ def test_outputs_written_and_a_rerun_reuses_the_seed(tiny_run):
     report = (workdir / "report.md").read_text()
     assert "| RP, paper's protocol |" in report and "(oracle)" in report
     assert "exact McNemar p" in report
+    assert "learning_curve.png" in metrics["figures"] and "![learning_curve.png]" in report
+    assert "## Provenance" in report and "- Code: " in report and " optax " in report
     seed_dir = workdir / "seed0"
     outcomes = json.loads((seed_dir / "seed.json").read_text())["outcomes"]
     for method in METHODS:

@@ -1,6 +1,8 @@
 """Both Sec. IV-A experiments run end to end at tiny size from their command lines."""
 
 import json
+import shlex
+import sys
 
 import cv2
 import numpy as np
@@ -25,17 +27,21 @@ def _not_blank(path):
 @pytest.mark.parametrize(
     "name,get_config,figures",
     [
-        ("webcam_clipart", webcam_config, {"fig6_average_repeatability.png", "fig7_examples.png"}),
+        ("webcam_clipart", webcam_config,
+         {"fig6_average_repeatability.png", "fig7_examples.png", "learning_curve.png"}),
         (
             "cmu_seasons",
             cmu_config,
-            {"fig6_average_repeatability.png", "fig7_examples.png", "fig9_categories.png"},
+            {"fig6_average_repeatability.png", "fig7_examples.png", "fig9_categories.png",
+             "learning_curve.png"},
         ),
     ],
 )
-def test_experiment_tiny(tmp_path, name, get_config, figures):
+def test_experiment_tiny(tmp_path, monkeypatch, name, get_config, figures):
     workdir = tmp_path / "run"
     argv = ["--size", "tiny", "--workdir", str(workdir), "--tfds-dir", str(tmp_path / "tfds")]
+    # As if run as `python -m experiments.<name> ARGV`: the report must record that command.
+    monkeypatch.setattr(sys, "orig_argv", ["/venv/bin/python3", "-m", f"experiments.{name}", *argv])
     assert cli.main(argv, name, get_config, "") == 0
     metrics = json.loads((workdir / "metrics.json").read_text())
     assert KEYS <= set(metrics)
@@ -57,6 +63,15 @@ def test_experiment_tiny(tmp_path, name, get_config, figures):
         _not_blank(workdir / f)
     report = (workdir / "report.md").read_text()
     assert "| RP (ours) |" in report and "per slot mean" in report
+    _check_provenance(report, f"python -m experiments.{name} {shlex.join(argv)}")
+
+
+def _check_provenance(report: str, command: str) -> None:
+    """The report says how it was made: the command, the code, the package versions."""
+    assert "## Provenance" in report and f"- Command: `{command}`" in report
+    assert "- Code: git " in report or "- Code: rp_jax " in report
+    for package in ("jax", "flax", "optax", "numpy", "opencv", "tensorflow-datasets"):
+        assert f" {package} " in report.split("## Provenance")[1], package
 
 
 def test_cli_rejects_bad_arguments(tmp_path, capsys):

@@ -1,0 +1,91 @@
+"""What produced a run: the command line, the code's version and the packages it ran on.
+
+Both drivers' ``report.md`` (Sec. IV-A and map summarization) record it, so a figure in a
+report can be traced to the code and the library versions that drew it. ``gather()`` is
+called once per run and stored in ``metrics.json``; ``markdown()`` renders it.
+"""
+
+from __future__ import annotations
+
+import platform
+import shlex
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+__all__ = ["gather", "markdown", "PACKAGES"]
+
+# The packages whose versions decide the numbers: (label, distributions to try in order).
+PACKAGES = (
+    ("jax", ("jax",)),
+    ("jaxlib", ("jaxlib",)),
+    ("flax", ("flax",)),
+    ("optax", ("optax",)),
+    ("numpy", ("numpy",)),
+    ("opencv", ("opencv-python-headless", "opencv-python", "opencv-contrib-python",
+                "opencv-contrib-python-headless")),
+    ("tensorflow-datasets", ("tensorflow-datasets", "tfds-nightly")),
+)
+_CHECKOUT = Path(__file__).resolve().parent.parent
+
+
+def _version(distributions) -> str | None:
+    for name in distributions:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return None
+
+
+def _git(*args: str) -> str | None:
+    try:
+        proc = subprocess.run(["git", "-C", str(_CHECKOUT), *args], capture_output=True,
+                              text=True, timeout=20, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return proc.stdout.strip() if proc.returncode == 0 else None
+
+
+def gather(argv: list[str] | None = None) -> dict:
+    """The run's provenance.
+
+    Args:
+      argv: the command line; default: the interpreter's own (``sys.orig_argv``, which
+        keeps ``-m experiments.webcam_clipart``), with the interpreter written ``python``.
+
+    Returns:
+      ``{"command", "code", "python", "packages"}``: ``code`` is ``git <commit>`` (with
+      ``+ uncommitted changes`` when the checkout has any) or, outside a checkout,
+      ``rp_jax <version>``; ``packages`` maps each of ``PACKAGES`` to its version or None.
+    """
+    argv = list(getattr(sys, "orig_argv", sys.argv) if argv is None else argv)
+    command = shlex.join(["python", *argv[1:]]) if argv else ""
+    commit = _git("rev-parse", "HEAD") if (_CHECKOUT / ".git").exists() else None
+    if commit:
+        dirty = _git("status", "--porcelain", "--untracked-files=no")
+        code = f"git {commit}" + (" + uncommitted changes" if dirty else "")
+    else:
+        code = f"rp_jax {_version(('rp_jax', 'rp-jax')) or 'unknown version'}"
+    return {
+        "command": command,
+        "code": code,
+        "python": platform.python_version(),
+        "packages": {label: _version(names) for label, names in PACKAGES},
+    }
+
+
+def markdown(prov: dict | None) -> list[str]:
+    """The ``## Provenance`` section of a report (nothing if ``prov`` is None)."""
+    if not prov:
+        return []
+    packages = ", ".join(f"{k} {v or 'not installed'}" for k, v in prov["packages"].items())
+    return [
+        "## Provenance",
+        "",
+        f"- Command: `{prov['command']}`",
+        f"- Code: {prov['code']}",
+        f"- Python {prov['python']}; {packages}.",
+        "",
+    ]
