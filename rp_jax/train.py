@@ -318,7 +318,7 @@ def train_and_evaluate(
     Returns:
       The final TrainState (replicated over the mesh).
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     workdir = Path(workdir).absolute()
     schedule = schedule or schedule_lib.preset(config.schedule)

@@ -31,7 +31,7 @@ def run_groundtruth_stage(size_name: str, repeats: int, progress: bool = True) -
     that its peak resident memory is its own. A quadratic ``a + b n + c n^2`` is fitted to the
     median times (matching is over all image pairs).
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     size = SIZES[size_name]
     try:

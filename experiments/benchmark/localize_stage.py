@@ -248,9 +248,9 @@ def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> d
     medians over rounds of peer time / our time.
     """
     import cv2
-    from tqdm.auto import tqdm
 
     from rp_jax.localize import localize
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     cv2.setNumThreads(2)
     size = SIZES[size_name]

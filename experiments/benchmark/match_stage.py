@@ -77,7 +77,8 @@ def run_match_stage(
     first.
     """
     import cv2
-    from tqdm.auto import tqdm
+
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     cv2.setNumThreads(2)
     size = SIZES[size_name]

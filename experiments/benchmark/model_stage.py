@@ -41,7 +41,7 @@ def run_model_stage(
     Returns:
       The stage's report entry (see ``report.py``).
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     names = list(variants or STAGE_VARIANTS[stage])
     if PEER_DEFAULT not in names:

@@ -368,7 +368,7 @@ def run_summarize_stage(size_name: str, repeats: int, progress: bool = True) -> 
     is n log n). The headline figures (``ours``/``peer`` median, ``ratio``) are at
     ``sum_headline_points`` (10^6 at full size), or the largest size both ran at.
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     size = SIZES[size_name]
     budget = float(size["kcover_budget_s"])

@@ -48,7 +48,6 @@ from pathlib import Path
 import jax
 import ml_collections
 import numpy as np
-from tqdm.auto import tqdm
 
 from experiments import provenance
 from experiments.map_summarization import report
@@ -87,6 +86,7 @@ from rp_jax.mapsum.statistics import (
     mcnemar_exact,
     paired_counts,
 )
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import cmu_seasons
 
 __all__ = [

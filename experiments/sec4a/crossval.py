@@ -20,11 +20,11 @@ from pathlib import Path
 
 import ml_collections
 import numpy as np
-from tqdm.auto import tqdm
 
 from experiments.sec4a import experiment
 from rp_jax import evaluation, files, predict, train
 from rp_jax import schedule as schedule_lib
+from rp_jax.progress import bar as tqdm  # the one progress helper
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
 

@@ -14,6 +14,7 @@ what differs and what to do, when they are not the same.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -97,6 +98,23 @@ def _path(builder) -> Path:
     return Path(builder.data_dir) / BUILT_FROM_JSON
 
 
+@contextlib.contextmanager
+def _local_build_messages(builder):
+    """TFDS's download messages ("Downloading and preparing dataset Unknown size ...", in bold
+    on stdout) and its own bars say nothing true of a build that downloads nothing; the
+    labelling's own progress (``rp_jax.progress``) and one log line say what happens."""
+    import tensorflow_datasets as tfds
+
+    log.info("building %s/%s in %s (labelled here; nothing is downloaded)", builder.name,
+             builder.builder_config.name, builder.data_dir)
+    builder._log_download_bytes = builder._log_download_done = lambda: None
+    tfds.disable_progress_bar()  # its bars redraw with control codes, even in a log
+    try:
+        yield
+    finally:
+        del builder._log_download_bytes, builder._log_download_done
+
+
 def _check(builder, manual_dir: Path) -> None:
     path = _path(builder)
     where = f"{builder.name}/{builder.builder_config.name} in {builder.data_dir}"
@@ -111,9 +129,8 @@ def _check(builder, manual_dir: Path) -> None:
     labelling = labelling_fingerprint(builder)
     old_layout, old_labelling = built.get("layout", {}), built.get("labelling", {})
     remedy = (
-        f"give another TFDS data directory (--data-dir of `python -m rp_jax.datasets build`, "
-        f"--tfds-dir of the experiments) for this one, or delete {builder.data_dir} to "
-        "rebuild it there"
+        f"give another TFDS data directory (--data-dir) for this one, or delete "
+        f"{builder.data_dir} to rebuild it there"
     )
     if old_layout.get("digest") != layout["digest"]:
         same_root = old_layout.get("root") == layout["root"]
@@ -171,7 +188,8 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
     dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir))
-    builder.download_and_prepare(download_config=dl)
+    with _local_build_messages(builder):
+        builder.download_and_prepare(download_config=dl)
     if layout is not None:
         _record(builder, layout)
     return True

@@ -165,7 +165,7 @@ def match_all_pairs(
     per_target = n_max * n_max * 4
     block = max(1, int(block_bytes // per_target))
 
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     def run_block(task: tuple[int, int, int]) -> None:
         a, b0, b1 = task

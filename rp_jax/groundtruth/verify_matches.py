@@ -129,7 +129,7 @@ def verify_matches(
     def pose_of(i: int) -> tuple[np.ndarray, np.ndarray]:
         return poses[i] if poses is not None else (captures[i].R, captures[i].t)
 
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     inliers = []
     for a in tqdm(range(n), desc=f"verification ({mode})", disable=not progress, leave=False):

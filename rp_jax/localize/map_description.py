@@ -35,13 +35,13 @@ from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
-from tqdm.auto import tqdm
 
 from rp_jax import files
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize.pipeline import LocalizationMap
 from rp_jax.localize.retrieval import GlobalIndex
 from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import hloc, images
 from rp_jax.sources.colmap_model import COLMAP_TO_OPENCV_PX, MapPoints, mean_per_point
 from rp_jax.sources.layout import LayoutError

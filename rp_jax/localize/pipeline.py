@@ -17,12 +17,12 @@ import time
 from collections.abc import Mapping
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from rp_jax.localize.matching import match_2d3d
 from rp_jax.localize.pnp import PoseEstimate, estimate_pose
 from rp_jax.localize.retrieval import GlobalIndex
 from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [

@@ -35,9 +35,9 @@ from __future__ import annotations
 import heapq
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from rp_jax.mapsum.sampling import keep_count
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = ["distinctiveness_weights", "greedy_kcover", "kcover_keep"]

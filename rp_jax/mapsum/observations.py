@@ -30,11 +30,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 from scipy.spatial import cKDTree
-from tqdm.auto import tqdm
 
 from rp_jax import categories
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.patches import extract_patches
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import cmu_seasons, images
 from rp_jax.sources.colmap_model import MapPoints, opencv_camera, opencv_xy
 from rp_jax.sources.layout import LayoutError

@@ -53,9 +53,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from rp_jax import categories
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.rotations import quaternion_to_rotation
 from rp_jax.schedule import TimeSchedule, load_spec, preset
 from rp_jax.sources import group_viewpoints, images

@@ -73,9 +73,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
-from tqdm import tqdm
 
 from rp_jax import categories
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.schedule import DATA_SPECS_DIR, TimeSchedule, load_spec, preset
 from rp_jax.sources import group_viewpoints, images
 from rp_jax.sources.capture import Camera, Capture

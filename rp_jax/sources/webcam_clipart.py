@@ -53,9 +53,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from rp_jax import categories
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.schedule import TimeSchedule, load_spec, preset
 from rp_jax.sources import images
 from rp_jax.sources.capture import Camera, Capture

@@ -33,9 +33,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from rp_jax import categories, files
+from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources.synthetic.conditions import weather_of_day
 from rp_jax.sources.synthetic.render import View, look_at, render
 from rp_jax.sources.synthetic.scene import Scene, build_scene

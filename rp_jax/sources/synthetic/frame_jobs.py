@@ -250,7 +250,7 @@ def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = Tru
         log.info("%d of %d frames already written; rendering %d", skipped, len(jobs), len(todo))
     if not todo:
         return 0
-    from tqdm import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     # Starting a process costs about a second: a few dozen frames render faster in-process.
     workers = min(workers, max(1, len(todo) // MIN_FRAMES_PER_WORKER))
