@@ -6,12 +6,13 @@ test), verify the matches geometrically (static camera, known poses, or a robust
 fundamental matrix), and turn the inliers into the repeatability vector y^j with its mask.
 
 Work is cached so that an interrupted build resumes where it stopped: the features of each
-image and the records of each finished viewpoint (``rp_jax.groundtruth.cache`` has the
-layout and the keys). Neither cache holds the 64x64x3 patches (95 % of the bytes): they are
-cut from the images when the records are returned (``attach_patches``), and a caller that
-keeps only some records (the dataset builders keep ``records_per_image``) asks for records
-without patches, selects, then cuts the patches of the kept rows only. Cutting is
-deterministic, so the records are identical to cutting at detection time.
+image (``rp_jax.groundtruth.image_features``) and the records of each finished viewpoint
+(``rp_jax.groundtruth.cache`` has the layout and the keys). Neither cache holds the 64x64x3
+patches (95 % of the bytes): they are cut from the images when the records are returned
+(``attach_patches``), and a caller that keeps only some records (the dataset builders keep
+``records_per_image``) asks for records without patches, selects, then cuts the patches of
+the kept rows only. Cutting is deterministic, so the records are identical to cutting at
+detection time.
 
 Every file is written atomically (temporary name, then ``os.replace``). The per-viewpoint
 function is pure given its inputs (callables must be picklable, e.g. module-level
@@ -37,11 +38,16 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import categories
 from rp_jax.groundtruth import cache, matching, patches, sfm
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.groundtruth.config import GroundTruthConfig
+from rp_jax.groundtruth.image_features import (
+    LoadCategory,
+    LoadImage,
+    checked_image,
+    image_features,
+)
 from rp_jax.groundtruth.verify_matches import (
     CameraOf,
     check_one_size,
@@ -81,8 +87,6 @@ RECORD_KEYS = (
     "image_id",
     "keypoint_id",
 )
-LoadImage = Callable[[Capture], "np.ndarray | None"]
-LoadCategory = Callable[[Capture], "np.ndarray | None"]
 
 
 # ----------------------------------------------------------------------------- files
@@ -94,19 +98,6 @@ def load_records(path: str | Path) -> dict[str, np.ndarray]:
 
 
 # ----------------------------------------------------------------------------- per image
-
-
-def _checked_image(capture: Capture, load_image: LoadImage) -> np.ndarray | None:
-    image = load_image(capture)
-    if image is None:
-        return None
-    image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-        raise ValueError(
-            f"load_image({capture.image_path}) must return RGB uint8 HxWx3, "
-            f"got {image.dtype} {image.shape}"
-        )
-    return image
 
 
 def attach_patches(
@@ -138,7 +129,7 @@ def attach_patches(
         capture = by_id.get(image_id)
         if capture is None:
             raise ValueError(f"records of image {image_id!r}, which is not among the captures")
-        image = _checked_image(capture, load_image)
+        image = checked_image(capture, load_image)
         if image is None:
             raise ValueError(
                 f"{capture.image_path}: unreadable now, but its interest points were detected "
@@ -147,87 +138,6 @@ def attach_patches(
         rows = np.flatnonzero(image_ids == image_id)
         patch[rows] = patches.extract_patches(image, xy[rows])
     out["patch"] = patch
-    return out
-
-
-def _categories_at(category_map: np.ndarray | None, xy: np.ndarray, size) -> np.ndarray:
-    if category_map is None:
-        return np.full(len(xy), categories.UNKNOWN, np.int32)
-    w, h = size
-    if category_map.shape[:2] != (h, w):
-        raise ValueError(
-            f"category map of shape {category_map.shape[:2]} does not match the {w}x{h} image"
-        )
-    c = patches.patch_centers(xy)
-    cx = np.clip(c[:, 0], 0, w - 1)
-    cy = np.clip(c[:, 1], 0, h - 1)
-    cat = category_map[cy, cx].astype(np.int32)
-    cat[cat == categories.UNLABELLED_PIXEL] = categories.UNKNOWN
-    return cat
-
-
-def _categories_of(capture: Capture, category_map, xy, size) -> np.ndarray:
-    """``_categories_at``, its error naming the image and its category map."""
-    try:
-        return _categories_at(category_map, xy, size)
-    except ValueError as err:
-        raise ValueError(
-            f"{capture.image_path}: {err} (category map "
-            f"{capture.meta.get('segmentation_path', 'from load_category')})"
-        ) from err
-
-
-def image_features(
-    capture: Capture,
-    *,
-    load_image: LoadImage,
-    config: GroundTruthConfig,
-    cache_dir: str | Path | None = None,
-    load_category: LoadCategory | None = None,
-) -> dict[str, np.ndarray] | None:
-    """Interest points, descriptors and categories of one image (cached).
-
-    Args:
-      capture: the image.
-      load_image: returns RGB uint8 [H, W, 3], or None if the image is unreadable.
-      config: detector settings.
-      cache_dir: if given, read/write ``features/<tag>/<viewpoint>/<image>.npz`` there.
-      load_category: optional, returns a uint8 [H, W] category map (255 = unlabelled).
-
-    Returns:
-      dict with ``xy`` [N,2] float32, ``descriptor`` [N,D] (raw dtype), ``category`` [N]
-      int32, ``image_size`` [2] int32 (W, H); or None if the image is unreadable (never
-      cached, so it is retried next time). Patches: ``attach_patches``.
-    """
-    path = cache.feature_path(cache_dir, config, capture) if cache_dir is not None else None
-    hit = None
-    if path is not None:
-        hit = cache.read_features(path, capture, with_categories=load_category is not None)
-    if hit is not None:
-        cached, categories_stale = hit
-        if categories_stale:
-            # Cached without categories, or its category map changed since: read them now
-            # (no detection needed).
-            size = tuple(int(v) for v in cached["image_size"])
-            category_map = load_category(capture)
-            cached["category"] = _categories_of(capture, category_map, cached["xy"], size)
-        return cached
-    image = _checked_image(capture, load_image)
-    if image is None:
-        return None
-    h, w = image.shape[:2]
-    feats = features_lib.detect_and_describe(
-        image, detector=config.detector, max_keypoints=config.max_keypoints
-    )
-    category_map = load_category(capture) if load_category is not None else None
-    out = {
-        "xy": feats.xy,
-        "descriptor": feats.descriptor,
-        "category": _categories_of(capture, category_map, feats.xy, (w, h)),
-        "image_size": np.array([w, h], np.int32),
-    }
-    if path is not None:
-        cache.write_features(path, capture, out, has_category_map=category_map is not None)
     return out
 
 
@@ -322,7 +232,7 @@ def label_viewpoint(
       float32 [N,D], ``time`` int32 [N,6] (``TIME_FIELDS``), ``cycle``/``slot`` int32 [N],
       ``viewpoint``/``image_id`` str [N], ``keypoint_id`` int32 [N] (index within its image).
     """
-    from rp_jax.progress import bar as tqdm  # the one progress helper
+    from tqdm.auto import tqdm
 
     config = GroundTruthConfig() if config is None else config
     viewpoint = _check_captures(captures, num_timestamps)
@@ -493,7 +403,7 @@ def label_viewpoints(
     Yields:
       ``(viewpoint_id, records)`` in completion order.
     """
-    from rp_jax.progress import bar as tqdm  # the one progress helper
+    from tqdm.auto import tqdm
 
     kwargs = {
         "load_image": load_image,
