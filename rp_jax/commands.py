@@ -15,6 +15,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
 from rp_jax.sources.layout import LayoutError
 
@@ -28,7 +29,8 @@ class InputError(ValueError):
 
 
 # What a command reports in one line (exit 2); anything else is a bug and keeps its traceback.
-INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError)
+INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError,
+                OutsideScheduleError)
 
 
 def datetime_flag(text: str) -> dt.datetime:

@@ -175,8 +175,9 @@ def at_time(scores, schedule: schedule_lib.TimeSchedule,
       [...] scores at ``when``.
 
     Raises:
-      ValueError: ``scores`` do not have T values, or (without wrapping) a time lies
-        outside the schedule's span; the message names the time and the span.
+      ValueError: ``scores`` do not have T values.
+      schedule.OutsideScheduleError: (a ValueError) without wrapping, a time lies outside
+        the schedule's span; the message names the time and the span.
     """
     scores = np.asarray(scores)
     T = schedule.num_timestamps
@@ -195,7 +196,7 @@ def at_time(scores, schedule: schedule_lib.TimeSchedule,
         outside = [i for i, v in enumerate(spans) if v is None]
         if outside:
             i = outside[0]
-            raise ValueError(
+            raise schedule_lib.OutsideScheduleError(
                 f"{whens[i].isoformat()} lies outside schedule {schedule.name!r} "
                 f"({schedule.span_text()})"
                 + (f", as do {len(outside) - 1} more of the {len(whens)} times"
@@ -329,7 +330,7 @@ class Predictor:
         outside = [i for i, t in enumerate(times) if not _in_schedule(self.schedule, t)]
         if outside:
             t = times[outside[0]]
-            raise ValueError(
+            raise schedule_lib.OutsideScheduleError(
                 f"times: {len(outside)} of {len(times)} lie outside schedule "
                 f"{self.schedule.name!r} ({self.schedule.span_text()}), e.g. {t.isoformat()} "
                 f"at index {outside[0]}; the predictor has no repeatability for them")

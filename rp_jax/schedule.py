@@ -29,6 +29,7 @@ import numpy as np
 __all__ = [
     "TimeSchedule",
     "UnassignedTimeError",
+    "OutsideScheduleError",
     "regular",
     "explicit_dates",
     "preset",
@@ -47,6 +48,11 @@ _MONTH_START_DAY = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30])
 
 class UnassignedTimeError(ValueError):
     """A datetime lies farther than the tolerance from every timestamp of the schedule."""
+
+
+class OutsideScheduleError(ValueError):
+    """A time outside the span of a schedule that does not cover its cycle: no repeatability
+    is known there (``TimeSchedule.covers_cycle``, ``span_offset``)."""
 
 
 def _offset_in_cycle(when: dt.datetime, cycle: str) -> int:

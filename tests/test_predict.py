@@ -123,6 +123,20 @@ def test_at_time_interpolates_between_slots_and_refuses_the_night():
         predict.at_time(np.zeros((1, 5)), s, dt.datetime(2020, 1, 1))
 
 
+def test_a_command_reports_a_time_outside_the_schedule_in_one_line(capsys):
+    from rp_jax import commands
+
+    s = schedule_lib.preset("webcam_clipart")
+    with pytest.raises(schedule_lib.OutsideScheduleError):
+        predict.at_time(np.zeros(21), s, dt.datetime(2024, 12, 1, 23, 0))
+    # python -m rp_jax.keypoints ... --at "2024-12-01 23:00" with such a model: one line, exit 2.
+    rc = commands.run_command("python -m rp_jax.keypoints", lambda: predict.at_time(
+        np.zeros(21), s, dt.datetime(2024, 12, 1, 23, 0)))
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert err.startswith("python -m rp_jax.keypoints: error: 2024-12-01T23:00:00 lies outside")
+
+
 def test_at_time_wraps_by_default_on_a_schedule_that_covers_the_cycle():
     s = schedule_lib.preset("hours_of_day")  # 0:00 ... 23:00
     assert s.covers_cycle
