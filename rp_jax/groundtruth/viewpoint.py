@@ -232,7 +232,7 @@ def label_viewpoint(
       float32 [N,D], ``time`` int32 [N,6] (``TIME_FIELDS``), ``cycle``/``slot`` int32 [N],
       ``viewpoint``/``image_id`` str [N], ``keypoint_id`` int32 [N] (index within its image).
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     config = GroundTruthConfig() if config is None else config
     viewpoint = _check_captures(captures, num_timestamps)
@@ -403,7 +403,7 @@ def label_viewpoints(
     Yields:
       ``(viewpoint_id, records)`` in completion order.
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     kwargs = {
         "load_image": load_image,
