@@ -54,6 +54,11 @@ __all__ = [
     "evaluate",
     "NonFiniteLossError",
     "WorkdirMismatchError",
+    "ConfigError",
+    "validate_config",
+    "check_workdir",
+    "MODEL_FIELDS",
+    "DATA_FIELDS",
 ]
 
 log = logging.getLogger(__name__)
@@ -69,6 +74,109 @@ class WorkdirMismatchError(ValueError):
 
 class NonFiniteLossError(ValueError):
     """Training produced a NaN or infinite loss; the last good checkpoint is kept."""
+
+
+class ConfigError(ValueError):
+    """A config field out of range; the message names the field, its value and what is expected."""
+
+
+# The config's lifetimes. A workdir's model is made by these fields (what it learns from and
+# how): a run resumes only under the same values. Everything else is runtime: where the data
+# is read from (``data_dir``, ``synthetic_root``), evaluation (``eval_batch_size``,
+# ``knn_k``, ...), cadence and devices, all free to change between runs of one workdir.
+# ``num_epochs`` is identity once anything is trained (see ``_check_same_config``).
+MODEL_FIELDS = ("seed", "schedule", "time_fields", "time_encoding", "model", "batch_size",
+                "learning_rate", "warmup_epochs", "weight_decay", "grad_clip", "augment",
+                "keep_best")
+DATA_FIELDS = ("dataset", "data_config", "manual_dir", "num_train_points", "num_val_points",
+               "validation_fraction")
+
+
+def _expect(ok: bool, field: str, value, expected: str) -> None:
+    if not ok:
+        raise ConfigError(f"config.{field}={value!r}: expected {expected}")
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
+
+
+def validate_config(config: ml_collections.ConfigDict) -> None:
+    """Raise ``ConfigError`` naming the first training field out of range (cheap; no JAX).
+
+    Drivers call it before any expensive stage (building a dataset takes minutes), and
+    ``train_and_evaluate`` calls it again for callers that skip the driver.
+    """
+    def positive_int(field: str, minimum: int = 1) -> None:
+        value = config.get(field)
+        _expect(_is_int(value) and value >= minimum, field, value, f"an integer >= {minimum}")
+
+    def number(field: str, lo: float, hi: float | None = None, *, open_lo: bool = False,
+               open_hi: bool = False, node=None, prefix: str = "") -> None:
+        value = (config if node is None else node).get(field)
+        ok = _is_number(value) and bool(np.isfinite(value))
+        if ok:
+            ok = (value > lo if open_lo else value >= lo) and (
+                hi is None or (value < hi if open_hi else value <= hi))
+        if hi is None:
+            expected = f"a finite number {'>' if open_lo else '>='} {lo:g}"
+        else:
+            expected = (f"a number in {'(' if open_lo else '['}{lo:g}, {hi:g}"
+                        f"{')' if open_hi else ']'}")
+        _expect(ok, prefix + field, value, expected)
+
+    positive_int("seed", 0)
+    _expect(config.schedule in schedule_lib.PRESETS, "schedule", config.schedule,
+            f"one of {list(schedule_lib.PRESETS)}")
+    _expect(config.time_fields in time_encoding.FIELDS, "time_fields", config.time_fields,
+            f"one of {list(time_encoding.FIELDS)}")
+    _expect(config.time_encoding in time_encoding.ENCODINGS, "time_encoding",
+            config.time_encoding, f"one of {list(time_encoding.ENCODINGS)}")
+    m = config.model
+    channels = m.encoder_channels
+    _expect(isinstance(channels, (tuple, list)) and len(channels) > 0
+            and all(_is_int(c) and c >= 1 for c in channels), "model.encoder_channels",
+            channels, "a non-empty tuple of positive integers such as (64, 64, 128)")
+    _expect(_is_int(m.encoder_features) and m.encoder_features >= 1, "model.encoder_features",
+            m.encoder_features, "an integer >= 1")
+    number("gem_init_p", 0, open_lo=True, node=m, prefix="model.")
+    _expect(m.dtype in model_lib.DTYPES, "model.dtype", m.dtype, f"one of {list(model_lib.DTYPES)}")
+    for field in ("batch_size", "eval_batch_size", "num_epochs", "eval_every_epochs",
+                  "checkpoint_every_epochs", "max_checkpoints_to_keep"):
+        positive_int(field)
+    positive_int("num_devices", 0)
+    number("learning_rate", 0, open_lo=True)
+    number("warmup_epochs", 0)
+    number("weight_decay", 0)
+    number("grad_clip", 0, open_lo=True)
+    a = config.augment
+    number("brightness", 0, node=a, prefix="augment.")
+    number("contrast", 0, 1, open_hi=True, node=a, prefix="augment.")
+    number("colour", 0, 1, open_hi=True, node=a, prefix="augment.")
+    number("zoom", 0, node=a, prefix="augment.")
+    _expect(isinstance(a.flip, bool), "augment.flip", a.flip, "true or false")
+    if config.get("dataset") == "learnable_task":
+        positive_int("num_train_points")
+        positive_int("num_val_points")
+
+
+def check_workdir(workdir: str | os.PathLike, config: ml_collections.ConfigDict) -> None:
+    """Refuse, before any work, a workdir that is a file or holds a run ``config`` cannot resume.
+
+    Raises ``WorkdirMismatchError`` (see ``_check_same_config``).
+    """
+    workdir = Path(workdir)
+    if workdir.exists() and not workdir.is_dir():
+        raise WorkdirMismatchError(f"workdir {workdir} is a file, not a folder; "
+                                   "give --workdir a folder (it is created if absent)")
+    if workdir.is_dir():
+        trained = any(_has_checkpoint(workdir / d)
+                      for d in (checkpoints.CHECKPOINTS_DIR, checkpoints.BEST_DIR))
+        _check_same_config(workdir, config, trained=trained)
 
 
 def model_inputs(batch: dict, config: ml_collections.ConfigDict):
@@ -150,13 +258,11 @@ def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict
     draws the same as an uninterrupted one.
     """
     patches, xy, time_features = model_inputs(batch, config)
-    aug = config.get("augment")
-    if aug is not None and (aug.brightness or aug.contrast or aug.flip or aug.get("colour")
-                            or aug.get("zoom")):
+    aug = config.augment
+    if aug.brightness or aug.contrast or aug.flip or aug.colour or aug.zoom:
         rng = jax.random.fold_in(jax.random.key(config.seed), state.step)
         patches = augment_patches(patches, rng, brightness=aug.brightness, contrast=aug.contrast,
-                                  flip=aug.flip, colour=aug.get("colour", 0.0),
-                                  zoom=aug.get("zoom", 0.0))
+                                  flip=aug.flip, colour=aug.colour, zoom=aug.zoom)
 
     def loss_fn(params):
         pred = state.apply_fn({"params": params}, patches, xy, time_features)
@@ -243,22 +349,26 @@ def write_run_files(workdir: Path, config, schedule: schedule_lib.TimeSchedule) 
 def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
     """Refuse a workdir whose run ``config`` cannot resume (``trained``: it has checkpoints).
 
-    Fields that do not change the model (evaluation and checkpoint cadence) may differ.
-    ``num_epochs`` may differ only while nothing is trained: the learning-rate schedule is
-    a function of it, so a model trained for 5 epochs is neither the 3-epoch model (cut
-    short) nor the 8-epoch one (extended), and reporting it as either is a wrong result.
+    Only ``MODEL_FIELDS`` and ``DATA_FIELDS`` are compared (and nested fields one by one);
+    runtime fields (data paths, evaluation, cadence, devices) may differ. ``num_epochs``
+    may differ only while nothing is trained: the learning-rate schedule is a function of
+    it, so a model trained for 5 epochs is neither the 3-epoch model (cut short) nor the
+    8-epoch one (extended), and reporting it as either is a wrong result.
     """
     path = workdir / "config.json"
     if not path.exists():
         return
-    old = json.loads(path.read_text())
+    try:
+        old = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise WorkdirMismatchError(f"{path} is not a run's config ({e}); use a new --workdir "
+                                   "or delete it") from e
     new = json.loads(json.dumps(config.to_dict(), default=list))
-    keep = ("num_epochs", "eval_every_epochs", "checkpoint_every_epochs", "max_checkpoints_to_keep",
-            "eval_batch_size")
-    diff = sorted(k for k in set(old) | set(new) if k not in keep and old.get(k) != new.get(k))
+    diff = sorted(_flat_diff(old, new, MODEL_FIELDS + DATA_FIELDS))
     if diff:
+        shown = "; ".join(f"{k}: {a!r} there, {b!r} asked" for k, a, b in diff)
         raise WorkdirMismatchError(
-            f"{workdir} holds a run with a different config (fields {diff}); use a new --workdir "
+            f"{workdir} holds a run with a different config ({shown}); use a new --workdir "
             "or delete the old one"
         )
     if trained and old.get("num_epochs") != new.get("num_epochs"):
@@ -269,6 +379,18 @@ def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
             f"{workdir / checkpoints.CHECKPOINTS_DIR}, {workdir / checkpoints.BEST_DIR} and "
             f"{workdir / 'metrics.jsonl'} to train again here"
         )
+
+
+def _flat_diff(old: dict, new: dict, fields) -> list[tuple[str, Any, Any]]:
+    """(dotted name, old, new) of each of ``fields`` (nested dicts field by field) that differs."""
+    out = []
+    for key in fields:
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += [(f"{key}.{k}", x, y) for k, x, y in _flat_diff(a, b, sorted(set(a) | set(b)))]
+        elif a != b:
+            out.append((key, a, b))
+    return out
 
 
 def _has_checkpoint(directory: Path) -> bool:
@@ -318,8 +440,9 @@ def train_and_evaluate(
     Returns:
       The final TrainState (replicated over the mesh).
     """
-    from rp_jax.progress import bar as tqdm  # the one progress helper
+    from tqdm.auto import tqdm
 
+    validate_config(config)
     workdir = Path(workdir).absolute()
     schedule = schedule or schedule_lib.preset(config.schedule)
     if not isinstance(train_source, input_pipeline.ArraySource):
@@ -342,9 +465,7 @@ def train_and_evaluate(
             f"{len(train_source)} training records is fewer than one batch of {config.batch_size}"
         )
 
-    trained = any(_has_checkpoint(workdir / d)
-                  for d in (checkpoints.CHECKPOINTS_DIR, checkpoints.BEST_DIR))
-    _check_same_config(workdir, config, trained=trained)
+    check_workdir(workdir, config)
     write_run_files(workdir, config, schedule)
     state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
     compiled = _compile(config, mesh, state.apply_fn)
@@ -363,7 +484,7 @@ def train_and_evaluate(
     state = jax.device_put(state, compiled.replicated)
 
     metrics_path = workdir / "metrics.jsonl"
-    keep_best = bool(config.get("keep_best", False)) and val_source is not None
+    keep_best = config.keep_best and val_source is not None
     best_manager = checkpoints.writer(workdir / checkpoints.BEST_DIR, 1) if keep_best else None
     best_val = _best_val_so_far(metrics_path)
     try:

@@ -99,9 +99,95 @@ def test_resume_equals_uninterrupted(tmp_path):
 def test_refuses_a_workdir_of_another_config(tmp_path):
     src = task(64, 0)
     train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
-    with pytest.raises(ValueError, match="different config"):
+    with pytest.raises(train.WorkdirMismatchError,
+                       match=r"different config \(learning_rate: 0\.003 there, 1\.0 asked\)"):
         train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1.0), tmp_path, src,
                                  progress=False)
+    model = small_config(num_epochs=1)
+    model.model.encoder_features = 16
+    with pytest.raises(train.WorkdirMismatchError, match=r"model\.encoder_features: 32 there"):
+        train.train_and_evaluate(model, tmp_path, src, progress=False)
+
+
+def _experiment_config(**runtime):
+    """small_config with an experiment's data and evaluation fields (issue 15, item 6)."""
+    c = small_config(num_epochs=1)
+    with c.unlocked():
+        c.data_dir, c.synthetic_root, c.knn_k = "/data/a", "", 10
+    for k, v in runtime.items():
+        setattr(c, k, v)
+    return c
+
+
+def test_runtime_fields_may_change_between_runs_of_one_workdir(tmp_path):
+    # Where the data is read from and how the model is evaluated make no other model: a run
+    # resumes (or is reused) under new values. Before the config had lifetimes every
+    # top-level field but five was identity, and this refused.
+    src = task(64, 0)
+    first = train.train_and_evaluate(_experiment_config(), tmp_path, src, progress=False)
+    again = train.train_and_evaluate(
+        _experiment_config(data_dir="/data/b", synthetic_root="/render", knn_k=3,
+                           eval_batch_size=32, num_devices=1, eval_every_epochs=2),
+        tmp_path, src, progress=False)
+    assert int(again.step) == int(first.step)  # nothing trained again
+    chex.assert_trees_all_close(train.params_to_numpy(again.params),
+                                train.params_to_numpy(first.params))
+
+
+def test_every_identity_field_is_a_field_of_the_default_config():
+    defaults = set(default.get_config().keys()) | {"data_config", "manual_dir",
+                                                    "validation_fraction"}
+    assert set(train.MODEL_FIELDS + train.DATA_FIELDS) <= defaults
+
+
+@pytest.mark.parametrize("field, value, expected", [
+    ("batch_size", 0, r"config\.batch_size=0: expected an integer >= 1"),
+    ("num_epochs", 0, r"config\.num_epochs=0: expected an integer >= 1"),
+    ("eval_batch_size", -8, r"config\.eval_batch_size=-8: expected an integer >= 1"),
+    ("time_encoding", "bogus",
+     r"config\.time_encoding='bogus': expected one of \['raw', 'cyclic'\]"),
+    ("time_fields", "hours", r"config\.time_fields='hours': expected one of"),
+    ("schedule", "weekly", r"config\.schedule='weekly': expected one of"),
+    ("learning_rate", -1.0, r"config\.learning_rate=-1\.0: expected a finite number > 0"),
+    ("learning_rate", float("inf"), r"config\.learning_rate=inf"),
+    ("warmup_epochs", -1.0, r"config\.warmup_epochs=-1\.0: expected a finite number >= 0"),
+    ("grad_clip", 0.0, r"config\.grad_clip=0\.0: expected a finite number > 0"),
+    ("weight_decay", float("nan"), r"config\.weight_decay=nan"),
+    ("seed", -1, r"config\.seed=-1: expected an integer >= 0"),
+    ("num_devices", -1, r"config\.num_devices=-1: expected an integer >= 0"),
+    ("eval_every_epochs", 0, r"config\.eval_every_epochs=0"),
+    ("checkpoint_every_epochs", 0, r"config\.checkpoint_every_epochs=0"),
+    ("max_checkpoints_to_keep", 0, r"config\.max_checkpoints_to_keep=0"),
+    ("model.encoder_channels", (), r"config\.model\.encoder_channels=\(\): expected a non-empty"),
+    ("model.encoder_features", 0, r"config\.model\.encoder_features=0"),
+    ("model.gem_init_p", 0.0, r"config\.model\.gem_init_p=0\.0: expected a finite number > 0"),
+    ("model.dtype", "float16", r"config\.model\.dtype='float16': expected one of"),
+    ("augment.brightness", -0.1, r"config\.augment\.brightness=-0\.1"),
+    ("augment.contrast", 1.0, r"config\.augment\.contrast=1\.0: expected a number in \[0, 1\)"),
+    ("augment.colour", 2.0, r"config\.augment\.colour=2\.0"),
+    ("augment.zoom", -1.0, r"config\.augment\.zoom=-1\.0"),
+])
+def test_validate_config_names_the_field_its_value_and_the_range(field, value, expected):
+    config = small_config()
+    *parents, leaf = field.split(".")
+    node = config
+    for p in parents:
+        node = node[p]
+    node[leaf] = value
+    with pytest.raises(train.ConfigError, match=expected):
+        train.validate_config(config)
+
+
+def test_the_default_config_is_valid():
+    train.validate_config(default.get_config())
+    train.validate_config(small_config())
+
+
+def test_a_workdir_that_is_a_file_is_refused(tmp_path):
+    (tmp_path / "run").write_text("notes")
+    with pytest.raises(train.WorkdirMismatchError, match=r"run is a file, not a folder"):
+        train.check_workdir(tmp_path / "run", small_config())
+    assert (tmp_path / "run").read_text() == "notes"
 
 
 @pytest.mark.skipif(len(jax.local_devices()) < 2, reason="needs 2 forced CPU devices (conftest)")
@@ -222,12 +308,20 @@ def test_epoch_count_may_change_before_anything_is_trained(tmp_path):
     assert int(state.step) == 2
 
 
-def test_nan_learning_rate_stops_at_the_first_nan_loss_without_a_checkpoint(tmp_path):
-    # Step 1's loss comes from the initial parameters; its update makes them NaN.
-    with pytest.raises(train.NonFiniteLossError,
-                       match=r"nan at epoch 1, step 2 \(learning_rate=nan.*no checkpoint"):
+def test_nan_learning_rate_is_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(train.ConfigError, match=r"config\.learning_rate=nan: expected a finite"):
         train.train_and_evaluate(small_config(learning_rate=float("nan")), tmp_path, task(64, 0),
                                  progress=False)
+    assert not tmp_path.joinpath("config.json").exists()
+
+
+def test_nan_inputs_stop_at_the_first_nan_loss_without_a_checkpoint(tmp_path):
+    src = task(64, 0)
+    bad = ip.ArraySource(dict(src.arrays, xy_normalized=np.full_like(src.arrays["xy_normalized"],
+                                                                      np.nan)), ip.MODEL_KEYS)
+    with pytest.raises(train.NonFiniteLossError,
+                       match=r"nan at epoch 1, step 1 \(learning_rate=.*no checkpoint"):
+        train.train_and_evaluate(small_config(), tmp_path, bad, progress=False)
     assert not (tmp_path / "metrics.jsonl").exists()
     assert not list((tmp_path / "checkpoints").glob("[0-9]*"))
 
