@@ -337,6 +337,10 @@ def tf_free_shuffler():
 # ----------------------------------------------------------------------------- builder
 
 
+def _no_bucket() -> None:
+    """``DatasetInfo.initialize_from_bucket`` of builders that nothing on GCS describes."""
+
+
 def _default_workers() -> int:
     try:
         cores = len(os.sched_getaffinity(0))
@@ -386,7 +390,7 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
 
     def _info(self) -> tfds.core.DatasetInfo:
         T = preset(self.DATASET).num_timestamps
-        return self.dataset_info_from_configs(
+        info = self.dataset_info_from_configs(
             features=features_lib.features_dict(T),
             supervised_keys=None,
             metadata=tfds.core.MetadataDict(
@@ -394,6 +398,11 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
                 num_timestamps=T,
             ),
         )
+        # TFDS asks GCS for pre-computed info of every builder not yet built, and first makes
+        # an empty /tmp/tmp*tfds folder it never removes (one per build and per experiment
+        # run). Nothing of these datasets is on GCS: skip the look-up.
+        info.initialize_from_bucket = _no_bucket
+        return info
 
     def _download_and_prepare(self, dl_manager, download_config, **kwargs):
         # Beam is used only when asked for (tfds build --beam_pipeline_options=...).

@@ -20,6 +20,7 @@ import hashlib
 import json
 import logging
 import os
+import shutil
 from pathlib import Path
 
 from rp_jax import files
@@ -28,6 +29,7 @@ from rp_jax.sources.layout import LayoutError
 __all__ = [
     "BUILT_FROM_JSON",
     "BuiltFromAnotherLayoutError",
+    "build_lock",
     "labelling_fingerprint",
     "layout_fingerprint",
     "prepare",
@@ -115,6 +117,33 @@ def _local_build_messages(builder):
         del builder._log_download_bytes, builder._log_download_done
 
 
+@contextlib.contextmanager
+def build_lock(builder):
+    """Hold the build of ``builder``'s dataset/config/version (one process at a time) and
+    remove the partial builds (TFDS's ``incomplete.*`` folders) that killed builds left.
+
+    TFDS builds into ``<config>/incomplete.XXXXXX_<version>/`` and renames it when done; a
+    build killed meanwhile leaves it for ever (one of 7 MB was found). Every build here takes
+    this lock (``fcntl.flock`` on ``<config>/.<version>.build.lock``, released by the kernel
+    when its holder dies), so under the lock no other build is writing one: each such folder
+    of this version is stale and is removed. Other versions' folders are not touched.
+    """
+    import fcntl
+
+    data_dir = Path(builder.data_dir)
+    data_dir.parent.mkdir(parents=True, exist_ok=True)
+    with open(data_dir.parent / f".{data_dir.name}.build.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # waits for a build of the same version
+        try:
+            for stale in sorted(data_dir.parent.glob(f"incomplete.*_{data_dir.name}")):
+                if stale.is_dir() and not stale.is_symlink():
+                    log.warning("removing %s, the partial build of a killed run", stale)
+                    shutil.rmtree(stale)
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 def _check(builder, manual_dir: Path) -> None:
     path = _path(builder)
     where = f"{builder.name}/{builder.builder_config.name} in {builder.data_dir}"
@@ -171,6 +200,9 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
       manual_dir: the download a real config reads (default: TFDS's
         ``<data_dir>/downloads/manual``).
 
+    One build of a dataset/config/version at a time (``build_lock``), which first removes
+    the partial builds of killed runs.
+
     Returns:
       True if it was built now, False if it was already built.
 
@@ -188,7 +220,9 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
     dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir))
-    with _local_build_messages(builder):
+    with build_lock(builder), _local_build_messages(builder):
+        if builder.is_prepared():  # built by another process while this one waited
+            return False
         builder.download_and_prepare(download_config=dl)
     if layout is not None:
         _record(builder, layout)

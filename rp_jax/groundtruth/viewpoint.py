@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rp_jax import worker_processes
 from rp_jax.groundtruth import cache, matching, patches, sfm
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
@@ -425,7 +426,9 @@ def label_viewpoints(
         # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
         # running already, and forking a multithreaded process can deadlock.
         spawn = mp.get_context("spawn")
-        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn) as pool:
+        # Workers exit with this process: a killed build must not leave them labelling.
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn,
+                                    initializer=worker_processes.exit_with_parent) as pool:
             futures = {
                 pool.submit(_label_one, vp, list(caps), kwargs, select, with_patches): vp
                 for vp, caps in viewpoints.items()
