@@ -1,28 +1,48 @@
 """Shared command line of the experiments (Flax-examples style: thin entry points).
 
-Every experiment takes the same flags::
+Every experiment takes the same flags (the project's one vocabulary,
+``rp_jax.command_line``)::
 
     --workdir DIR        run directory (default runs/<experiment>_<size>); resumes if present
-    --data-dir DIR       a real download in its real layout; absent: the synthetic world
-    --size tiny|small|full   synthetic size (default full; ignored with --data-dir)
-    --tfds-dir DIR       where built TFDS datasets are kept (default: $RP_JAX_DATA_DIR, else
-                         data/tensorflow_datasets in the source checkout, whatever the
-                         working directory; ~/.cache/rp_jax/... for an installed wheel)
-    --config.FIELD=VALUE any field of the experiment's config, e.g. --config.num_epochs=3
+    --manual-dir DIR     the real dataset you downloaded, in its real layout (TFDS's
+                         manual_dir); absent: the synthetic world
+    --size tiny|small|full   synthetic size (ignored with --manual-dir)
+    --data-dir DIR       TFDS data directory, where built datasets are kept (TFDS's data_dir;
+                         default: $RP_JAX_DATA_DIR, else data/tensorflow_datasets in the source
+                         checkout, whatever the working directory; ~/.cache/rp_jax/... for an
+                         installed wheel)
+    --config FILE[:ARG]  an ml_collections config file (default: the experiment's own, called
+                         with --size); ``ml_collections.config_flags`` loads it
+    --config.FIELD=VALUE any field of the config, e.g. --config.num_epochs=3 (config_flags)
+    --print-config       print the resolved config and exit
+    --quiet              no progress output
     --cross-validate     instead of the test run: hold out each training viewpoint in turn
                          (experiments.sec4a.crossval); writes <workdir>/crossval/crossval.{json,md}
     --folds N            with --cross-validate: N groups of viewpoints (default: one each)
+
+Deprecated for one release (a warning on stderr): ``--tfds-dir`` (now ``--data-dir``) and
+``--data-dir`` naming a download (now ``--manual-dir``): a ``--data-dir`` folder that holds
+files but no built dataset is read as the download, with a warning.
+
+Why argparse around ``config_flags`` rather than an absl app: absl's ``--help`` lists absl's
+own flags (logging, verbosity, ...) beside ours, cannot take positional arguments or
+sub-commands the other commands have, and loses the description text; so argparse keeps the
+command line and its ``--help``, and every ``--config`` / ``--config.FIELD`` argument is
+handed to ``config_flags`` on a private ``FlagValues``: loading, typed overrides (tuples,
+bools, ``--noconfig.FIELD``) and their errors are ``config_flags``' own.
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import ml_collections
+
+from rp_jax import command_line
 
 SIZES = ("tiny", "small", "full")
 
@@ -33,74 +53,133 @@ def _default_tfds_dir() -> str:
     return str(DEFAULT_DATA_DIR)
 
 
-def _convert(old, text: str):
-    if isinstance(old, bool):
-        if text.lower() in ("true", "1", "yes"):
-            return True
-        if text.lower() in ("false", "0", "no"):
-            return False
-        raise ValueError(f"expected true/false, got {text!r}")
-    if isinstance(old, int):
-        return int(text)
-    if isinstance(old, float):
-        return float(text)
-    if isinstance(old, (tuple, list)):
-        value = ast.literal_eval(text)
-        if not isinstance(value, (tuple, list)):
-            raise ValueError(f"expected a tuple such as (64, 64, 128), got {text!r}")
-        return tuple(value)
-    return text
+def _is_tfds_data_dir(path: Path) -> bool:
+    """Whether ``path`` can be a TFDS data directory: new, empty, or holding built datasets."""
+    from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+
+    if not path.exists():
+        return True
+    if not path.is_dir():
+        return False
+    if not any(path.iterdir()) or (path / "downloads").is_dir():
+        return True
+    return any((path / name / config).is_dir() for name in DATASET_NAMES for config in CONFIG_NAMES)
 
 
-def apply_overrides(config: ml_collections.ConfigDict, overrides: list[str]) -> None:
-    """Apply ``--config.a.b=value`` overrides, converting to the field's existing type."""
+_OVERRIDE = re.compile(r"^--?(no)?config\.")
+_BOOL_WORDS = {"yes": "true", "no": "false"}
+
+
+def override_args(rest: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """The ``--config.FIELD[=VALUE]`` arguments of ``rest`` (a value may follow as the next
+    argument, as absl allows); anything else is an error naming it."""
+    out, i = [], 0
+    while i < len(rest):
+        item = rest[i]
+        if not _OVERRIDE.match(item):
+            parser.error(f"unrecognized argument {item!r}: expected a flag of --help or "
+                         "--config.FIELD=VALUE")
+        out.append(item)
+        if "=" not in item and i + 1 < len(rest) and not rest[i + 1].startswith("-"):
+            out.append(rest[i + 1])
+            i += 1
+        i += 1
+    return out
+
+
+def _field(config: ml_collections.ConfigDict, override: str):
+    """(found, value) of the field an override names."""
+    node = config
+    for key in _OVERRIDE.sub("", override.split("=", 1)[0]).split("."):
+        if not isinstance(node, ml_collections.ConfigDict) or key not in node:
+            return False, None
+        node = node[key]
+    return True, node
+
+
+def _check_fields(parser, config: ml_collections.ConfigDict, overrides: list[str]) -> list[str]:
+    """Every override names a field (else ``parser.error`` listing the fields there);
+    ``--config.FLAG=yes|no`` of a bool field reads as true/false, as the earlier parser did."""
+    out = []
     for item in overrides:
-        if not item.startswith("--config.") or "=" not in item:
-            raise SystemExit(f"unknown argument {item!r}: expected --config.FIELD=VALUE")
-        path, text = item[len("--config."):].split("=", 1)
-        *parents, leaf = path.split(".")
-        node = config
-        for p in parents:
-            if p not in node:
-                raise SystemExit(f"--config.{path}: no field {p!r} in the config")
-            node = node[p]
-        if leaf not in node:
-            fields = ", ".join(sorted(node.keys()))
-            raise SystemExit(f"--config.{path}: no such field; fields: {fields}")
-        try:
-            node[leaf] = _convert(node[leaf], text)
-        except (ValueError, SyntaxError) as e:
-            raise SystemExit(f"--config.{path}={text}: {e}") from e
+        if not _OVERRIDE.match(item):  # a value given as the next argument
+            out.append(item)
+            continue
+        path = item.split("=", 1)[0]
+        found, value = _field(config, item)
+        if not found:
+            parent = path.rsplit(".", 1)[0]
+            _, node = _field(config, parent) if "." in _OVERRIDE.sub("", path) else (True, config)
+            fields = ", ".join(sorted(node.keys())) if isinstance(
+                node, ml_collections.ConfigDict) else "(none)"
+            parser.error(f"{path}: no such field in the config; fields there: {fields}")
+        if isinstance(value, bool) and "=" in item:
+            text = item.split("=", 1)[1]
+            item = f"{path}={_BOOL_WORDS.get(text.lower(), text)}"
+        out.append(item)
+    return out
 
 
-def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
-          doc: str) -> tuple[ml_collections.ConfigDict, Path]:
-    """Parse the flags into (config, workdir)."""
-    config, workdir, _ = parse_flags(argv, name, get_config, doc)
-    return config, workdir
+def load_config(parser: argparse.ArgumentParser, default: Callable[[], ml_collections.ConfigDict],
+                config_file: str | None, overrides: list[str]) -> ml_collections.ConfigDict:
+    """The config of ``--config FILE[:ARG]`` (else ``default()``) with ``--config.FIELD=VALUE``
+    overrides, both through ``ml_collections.config_flags``; a bad one is ``parser.error``."""
+    from absl import flags
+    from ml_collections import config_flags
+
+    if config_file is None:
+        config = default()
+    else:
+        if not Path(config_file.split(":", 1)[0]).is_file():
+            parser.error(f"--config {config_file}: no such file (expected a Python file with "
+                         "get_config())")
+        argv = [parser.prog, f"--config={config_file}"]
+        values = flags.FlagValues()
+        try:  # config_flags' own loader of --config=FILE[:ARG]
+            config_flags.DEFINE_config_file("config", flag_values=values, sys_argv=argv,
+                                            lock_config=False)
+            values(argv)
+            config = values.config
+        except (TypeError, ValueError, flags.Error) as err:  # its get_config failed
+            parser.error(f"--config {config_file}: {str(err).strip().splitlines()[-1]}")
+        if not isinstance(config, ml_collections.ConfigDict):
+            parser.error(f"--config {config_file}: get_config() returned "
+                         f"{type(config).__name__}, not an ml_collections.ConfigDict")
+    overrides = _check_fields(parser, config, overrides)
+    argv = [parser.prog, *overrides]
+    values = flags.FlagValues()
+    try:
+        config_flags.DEFINE_config_dict("config", config, flag_values=values, sys_argv=argv,
+                                        lock_config=False)
+        values(argv)
+    except flags.Error as err:
+        parser.error(str(err).replace("flag --config", "--config"))
+    return values.config
 
 
-def parse_flags(argv: list[str] | None, name: str,
-                get_config: Callable[[str], ml_collections.ConfigDict], doc: str, *,
-                cross_validation: bool = False
-                ) -> tuple[ml_collections.ConfigDict, Path, argparse.Namespace]:
-    """Parse the flags into (config, workdir, the parsed flags); ``cross_validation`` adds
-    ``--cross-validate`` and ``--folds`` (the Sec. IV-A experiments)."""
-    parser = argparse.ArgumentParser(prog=f"python -m experiments.{name}", description=doc,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser(name: str, doc: str, *, default_size: str = "full",
+                 cross_validation: bool = False) -> argparse.ArgumentParser:
+    """The experiments' argparse parser (``--config.FIELD=VALUE`` are parsed apart)."""
+    parser = argparse.ArgumentParser(
+        prog=f"python -m experiments.{name}", description=doc,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="--config.FIELD=VALUE  override one field of the config (ml_collections."
+        "config_flags: tuples as (8,8,16), bools as true/false or --config.FIELD / "
+        "--noconfig.FIELD); --print-config lists the fields.")
     parser.add_argument("--workdir", type=Path, default=None,
-                        help="run directory (resumes if present)")
-    parser.add_argument("--data-dir", type=Path, default=None,
-                        help="a real download in its real layout (default: the synthetic world)")
-    parser.add_argument("--size", choices=SIZES, default="full",
-                        help="synthetic size (default full)")
-    parser.add_argument(
-        "--tfds-dir",
-        type=Path,
-        default=None,
-        help=f"TFDS data directory (default: $RP_JAX_DATA_DIR or {_default_tfds_dir()}, the "
-        "same from any working directory)",
-    )
+                        help=f"run directory (default runs/{name}_<size>; resumes if present)")
+    command_line.add_manual_dir(parser)
+    parser.add_argument("--size", choices=SIZES, default=None,
+                        help=command_line.SIZE_HELP.format(default=default_size))
+    command_line.add_data_dir(parser, default=_default_tfds_dir() + ", the same from any "
+                              "working directory")
+    command_line.deprecated_alias(parser, "--tfds-dir", "--data-dir", dest="data_dir", type=Path)
+    parser.add_argument("--config", dest="config_file", metavar="FILE[:ARG]", default=None,
+                        help="ml_collections config file whose get_config(ARG) gives the config "
+                        "(default: this experiment's own, with ARG = --size)")
+    parser.add_argument("--print-config", action="store_true",
+                        help="print the resolved config (after every flag) and exit")
+    command_line.add_quiet(parser)
     if cross_validation:
         parser.add_argument("--cross-validate", action="store_true",
                             help="hold out each training viewpoint in turn instead of testing")
@@ -108,22 +187,64 @@ def parse_flags(argv: list[str] | None, name: str,
                             help="with --cross-validate: groups of viewpoints "
                                  "(default 0: one per viewpoint)")
     parser.set_defaults(cross_validate=False, folds=0)
-    args, rest = parser.parse_known_args(argv)
+    return parser
+
+
+def parse(argv: list[str] | None, name: str, get_config: Callable[[str], ml_collections.ConfigDict],
+          doc: str, **kwargs) -> tuple[ml_collections.ConfigDict, Path]:
+    """Parse the flags into (config, workdir)."""
+    config, workdir, _ = parse_flags(argv, name, get_config, doc, **kwargs)
+    return config, workdir
+
+
+def parse_flags(argv: list[str] | None, name: str,
+                get_config: Callable[[str], ml_collections.ConfigDict], doc: str, *,
+                cross_validation: bool = False, default_size: str = "full",
+                add_flags: Callable[[argparse.ArgumentParser], None] | None = None,
+                ) -> tuple[ml_collections.ConfigDict, Path, argparse.Namespace]:
+    """Parse the flags into (config, workdir, the parsed flags).
+
+    ``cross_validation`` adds ``--cross-validate`` and ``--folds`` (the Sec. IV-A
+    experiments); ``default_size`` is the ``--size`` when none is given; ``add_flags`` adds
+    an experiment's own flags. ``--print-config`` prints the config and exits (status 0).
+    """
+    parser = build_parser(name, doc, default_size=default_size, cross_validation=cross_validation)
+    if add_flags is not None:
+        add_flags(parser)
+    args, rest = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
     if args.folds and not args.cross_validate:
         parser.error("--folds needs --cross-validate")
     if args.folds < 0 or args.folds == 1:
         parser.error(f"--folds must be 0 (one per viewpoint) or at least 2, got {args.folds}")
-    size = args.size
-    config = get_config(size)
-    if args.data_dir is not None:
-        if not args.data_dir.is_dir():
-            parser.error(f"--data-dir {args.data_dir} is not a directory")
+    if (args.data_dir is not None and args.manual_dir is None
+            and not _is_tfds_data_dir(args.data_dir)):
+        # The released meaning of --data-dir here was the download: read it so for one release.
+        command_line.deprecation_warning(
+            parser.prog, f"--data-dir {args.data_dir} (a folder with no built dataset, read as "
+            "the download)", f"--manual-dir {args.data_dir}; --data-dir now names the TFDS "
+            "data directory, as in python -m rp_jax.datasets")
+        args.manual_dir, args.data_dir = args.data_dir, None
+    size = args.size or default_size
+    overrides = override_args(rest, parser)
+    if args.config_file is not None and args.size is not None and ":" not in args.config_file:
+        args.config_file = f"{args.config_file}:{args.size}"
+    config = load_config(parser, lambda: get_config(size), args.config_file, overrides)
+    if args.manual_dir is not None:
+        if not args.manual_dir.is_dir():
+            parser.error(f"--manual-dir {args.manual_dir} is not a directory")
         config.data_config = "real"
-        config.manual_dir = str(args.data_dir.absolute())
+        config.manual_dir = str(args.manual_dir.absolute())
         size = "real"
-    if args.tfds_dir is not None:
-        config.data_dir = str(args.tfds_dir.absolute())
-    apply_overrides(config, rest)
+    elif args.config_file is not None:
+        stem, _, arg = args.config_file.partition(":")
+        file = Path(stem)
+        size = "_".join(filter(None, (file.parent.name if file.stem == "config" else file.stem,
+                                      arg)))
+    if args.data_dir is not None:
+        config.data_dir = str(args.data_dir.absolute())
+    if args.print_config:
+        print(config, end="")  # ConfigDict's YAML, as the Flax examples log it
+        raise SystemExit(0)
     workdir = args.workdir or Path("runs") / f"{name}_{size}"
     return config, workdir, args
 
@@ -131,24 +252,23 @@ def parse_flags(argv: list[str] | None, name: str,
 def main(argv, name: str, get_config, doc: str) -> int:
     """Parse flags, run ``experiments.sec4a.experiment.run`` and print the headline figures."""
     config, workdir, args = parse_flags(argv, name, get_config, doc, cross_validation=True)
-    from rp_jax import platform
+    from rp_jax import platform, progress
 
+    if args.quiet:
+        progress.set_quiet()
     platform.configure_cpu()
-    from experiments.sec4a import config as sec4a_config
     from experiments.sec4a import experiment
     from rp_jax import train
     from rp_jax.sources.layout import LayoutError
 
     try:
-        sec4a_config.validate(config, workdir)  # before any build: one line, exit 2
         if args.cross_validate:
             return _cross_validate(config, Path(workdir) / "crossval", args.folds)
         metrics = experiment.run(config, workdir)
-    except LayoutError as e:  # a --data-dir that is not the dataset's layout: say what is missing
+    except LayoutError as e:  # a --manual-dir that is not the dataset's layout: what is missing
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
-    except (train.ConfigError, train.WorkdirMismatchError) as e:  # a field out of range, or
-        # a workdir this config cannot resume
+    except train.WorkdirMismatchError as e:  # a workdir this config cannot resume
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
     except train.NonFiniteLossError as e:  # diverged: nothing of it was saved or reported

@@ -15,23 +15,39 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import files, platform, predict, time_encoding, train
+from experiments import cli
+from rp_jax import command_line, files, platform, predict, progress, time_encoding, train
 from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default
 from rp_jax.datasets import input_pipeline, learnable_task
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].strip("`"))
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.demo", description=__doc__.splitlines()[0].strip("`"),
+        epilog="--config.FIELD=VALUE  override one field of the config (ml_collections."
+        "config_flags), e.g. --config.num_epochs=3; --print-config lists the fields.")
     parser.add_argument("--workdir", default="runs/demo_learnable_task",
                         help="run directory (resumes if present)")
-    parser.add_argument("--epochs", type=int, default=None, help="override config.num_epochs")
-    args = parser.parse_args(argv)
-    platform.configure_cpu()
-
-    config = default.get_config()
-    if args.epochs is not None:
+    parser.add_argument("--config", dest="config_file", metavar="FILE[:ARG]", default=None,
+                        help="ml_collections config file whose get_config(ARG) gives the config "
+                        "(default: rp_jax/configs/default.py)")
+    parser.add_argument("--print-config", action="store_true",
+                        help="print the resolved config (after every flag) and exit")
+    command_line.add_quiet(parser)
+    command_line.deprecated_alias(parser, "--epochs", "--config.num_epochs=N", dest="epochs",
+                                  type=int)
+    args, rest = parser.parse_known_args(argv)
+    config = cli.load_config(parser, default.get_config, args.config_file,
+                             cli.override_args(rest, parser))
+    if getattr(args, "epochs", None) is not None:
         config.num_epochs = args.epochs
+    if args.print_config:
+        print(config, end="")
+        return 0
+    if args.quiet:
+        progress.set_quiet()
+    platform.configure_cpu()
     schedule = schedule_lib.preset(config.schedule)
     train_rec = learnable_task.make_learnable_task(config.num_train_points, schedule,
                                                    seed=config.seed)

@@ -3,7 +3,7 @@
 The maintainers' step after a default experiment (``rp_jax.shipped`` says what a shipped
 model holds)::
 
-    python -m experiments.ship_models RUN_WORKDIR NAME --dataset D --config C --split S \\
+    python -m experiments.ship_models RUN_WORKDIR NAME --dataset D --size S --split SPLIT \\
         --about ABOUT.json
 
 writes ``rp_jax/models/NAME/``: the run's config and schedule, its parameters, the first
@@ -22,11 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rp_jax import files, shipped
+from rp_jax import command_line, files, shipped
 
 __all__ = ["export", "main", "sample_mae", "sample_predictions"]
 
 ABOUT_KEYS = ("what", "command", "figures", "good_for", "not_for")
+_CONFIG_OF_SIZE = {"tiny": "synthetic_tiny", "small": "synthetic_small", "full": "synthetic"}
 
 
 def sample_predictions(predictor, sample) -> np.ndarray:
@@ -77,7 +78,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("workdir", nargs="?", help="the trained workdir of a default run")
     p.add_argument("name", nargs="?", help="the shipped model's name, e.g. robotcar-synthetic")
     p.add_argument("--dataset", help="dataset of the sample: webcam_clipart, cmu_seasons, robotcar")
-    p.add_argument("--config", help="its TFDS config, e.g. synthetic or synthetic_small")
+    p.add_argument("--size", choices=tuple(_CONFIG_OF_SIZE), default=None,
+                   help="size of the synthetic world whose build the sample's records come "
+                   "from (tiny, small, full; needed unless --real)")
+    p.add_argument("--real", action="store_true", help="the sample comes from the real data "
+                   "(TFDS builder config real) instead of the synthetic world")
+    command_line.add_data_dir(p, default="rp_jax.datasets.loading.default_data_dir()")
+    # Released spelling: a TFDS builder config name; --size / --real say the same.
+    p.add_argument("--config", dest="config_name", default=None, help=argparse.SUPPRESS)
     p.add_argument("--split", default="test", help="its split (default test)")
     p.add_argument("--about", help="a JSON file with what, command, figures, good_for, not_for")
     p.add_argument("--list", action="store_true", help="list the shipped models and stop")
@@ -86,12 +94,17 @@ def main(argv: list[str] | None = None) -> int:
         for n in shipped.names():
             print(n, json.loads((shipped.MODELS_DIR / n / "model.json").read_text())["sample"])
         return 0
-    if not (args.workdir and args.name and args.dataset and args.config and args.about):
-        p.error("WORKDIR NAME --dataset --config --about are needed (or --list)")
+    data_config = args.config_name
+    if data_config is not None:
+        command_line.deprecation_warning(p.prog, f"--config {data_config}", "--size or --real")
+    elif args.real or args.size:
+        data_config = "real" if args.real else _CONFIG_OF_SIZE[args.size]
+    if not (args.workdir and args.name and args.dataset and data_config and args.about):
+        p.error("WORKDIR NAME --dataset --size (or --real) --about are needed (or --list)")
     try:
         about = json.loads(Path(args.about).read_text())
-        folder = export(args.workdir, args.name, dataset=args.dataset, data_config=args.config,
-                        split=args.split, about=about)
+        folder = export(args.workdir, args.name, dataset=args.dataset, data_config=data_config,
+                        split=args.split, about=about, data_dir=args.data_dir)
     except (OSError, ValueError) as err:
         print(f"python -m experiments.ship_models: error: {err}", file=sys.stderr)
         return 2

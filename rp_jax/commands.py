@@ -1,7 +1,9 @@
 """What the ``python -m rp_jax.keypoints / mapsum / localize`` commands share.
 
 Each command is thin (hloc's style: parse flags, call one library function, print what it
-wrote). They share the flag vocabulary below and one rule for bad input: a single line
+wrote). They share the project's one flag vocabulary (``rp_jax.command_line``: ``--predictor``
+is a trained predictor, ``--model`` a COLMAP model, ``--out`` the output, ``--quiet`` no
+progress) and one rule for bad input: a single line
 ``<command>: error: <what, naming the file or flag>`` on stderr and exit status 2 (argparse's
 own status for a bad flag), never a traceback.
 """
@@ -43,7 +45,7 @@ def datetime_flag(text: str) -> dt.datetime:
         ) from None
 
 
-def load_predictor(path: str | os.PathLike, flag: str = "--model"):
+def load_predictor(path: str | os.PathLike, flag: str = "--predictor"):
     """``rp_jax.predict.load`` with its failures as an ``InputError`` naming the flag."""
     from rp_jax import (
         predict,  # JAX: imported once the command has configured the CPU

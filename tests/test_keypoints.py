@@ -79,7 +79,7 @@ def test_command_writes_npz_and_overlay(model, image, tmp_path, capsys):
     a = _write(tmp_path / "a.jpg", image)
     b = _write(tmp_path / "b.jpg", image[::-1].copy(), exif_time="2024:06:02 17:15:00")
     out = tmp_path / "out"
-    rc = keypoints_cli.main([str(a), str(b), "--model", str(model), "--at", "2024-12-01 17:00",
+    rc = keypoints_cli.main([str(a), str(b), "--predictor", str(model), "--at", "2024-12-01 17:00",
                          "--captured", "2024-06-01 09:30", "--out", str(out),
                          "--max-keypoints", "150"])
     assert rc == 0
@@ -95,9 +95,9 @@ def test_command_writes_npz_and_overlay(model, image, tmp_path, capsys):
     png = cv2.imread(str(out / "a_repeatability.png"))
     assert png is not None and png.shape[0] > 200 and png.std() > 20  # written, not blank
     # Without --captured the time comes from EXIF (b.jpg); a.jpg has none: a one-line error.
-    rc = keypoints_cli.main([str(b), "--model", str(model), "--out", str(out), "--no-overlay"])
+    rc = keypoints_cli.main([str(b), "--predictor", str(model), "--out", str(out), "--no-overlay"])
     assert rc == 0 and "captured 2024-06-02 17:15" in capsys.readouterr().out
-    rc = keypoints_cli.main([str(a), "--model", str(model), "--out", str(out)])
+    rc = keypoints_cli.main([str(a), "--predictor", str(model), "--out", str(out)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1
     assert "a.jpg: no capture time" in err and "give --captured" in err
@@ -112,7 +112,7 @@ def test_command_reads_hloc_keypoints(model, image, tmp_path, capsys):
         g.create_dataset("descriptors", data=np.zeros((256, 3), np.float16))
         g.create_dataset("scores", data=np.ones(3, np.float16))
         g.create_dataset("image_size", data=np.array([320, 240]))
-    rc = keypoints_cli.main([str(a), "--model", str(model), "--captured", "2024-06-01 09:30",
+    rc = keypoints_cli.main([str(a), "--predictor", str(model), "--captured", "2024-06-01 09:30",
                          "--features", str(h5), "--out", str(tmp_path / "o"), "--no-overlay"])
     assert rc == 0, capsys.readouterr().err
     with np.load(tmp_path / "o" / "a.npz") as z:
@@ -122,18 +122,24 @@ def test_command_reads_hloc_keypoints(model, image, tmp_path, capsys):
 def test_bad_input_is_one_line_exit_2(model, image, tmp_path, capsys):
     a = _write(tmp_path / "a.jpg", image)
     cases = [
-        ([str(tmp_path / "missing.jpg"), "--model", str(model)], "missing.jpg: no such image"),
-        ([str(a), "--model", str(tmp_path / "nomodel")], "--model"),
-        ([str(a), "--model", str(tmp_path)], "unreadable model"),
-        ([str(a), "--model", str(model), "--features", str(tmp_path / "f.h5")], "f.h5"),
+        ([str(tmp_path / "missing.jpg"), "--predictor", str(model)], "missing.jpg: no such image"),
+        ([str(a), "--predictor", str(tmp_path / "nomodel")], "--predictor"),
+        ([str(a), "--predictor", str(tmp_path)], "unreadable model"),
+        ([str(a), "--predictor", str(model), "--features", str(tmp_path / "f.h5")], "f.h5"),
     ]
     for argv, expected in cases:
         out = str(tmp_path / "o")
         rc = keypoints_cli.main([*argv, "--captured", "2024-06-01 09:30", "--out", out])
         err = capsys.readouterr().err
         assert rc == 2 and err.count("\n") == 1 and expected in err, (argv, err)
+    # The released spelling --model still works this release, with a warning.
+    rc = keypoints_cli.main([str(a), "--model", str(tmp_path / "nomodel"), "--captured",
+                             "2024-06-01 09:30", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--model is deprecated" in err and "use --predictor" in err
+    assert "--predictor " + str(tmp_path / "nomodel") in err
     with pytest.raises(SystemExit) as exc:  # argparse: a bad time is exit 2 too
-        keypoints_cli.main([str(a), "--model", str(model), "--captured", "noon", "--out", "o"])
+        keypoints_cli.main([str(a), "--predictor", str(model), "--captured", "noon", "--out", "o"])
     assert exc.value.code == 2 and "unreadable time 'noon'" in capsys.readouterr().err
 
 

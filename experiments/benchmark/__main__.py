@@ -2,6 +2,7 @@
 summarization of V-A and localization of V-B).
 
     python -m experiments.benchmark [STAGE ...] [--out DIR] [--size tiny|full] [--repeats N]
+                                    [--quiet]
 
 Stages: train, predict, match, groundtruth, summarize, localize (default: all).
 
@@ -20,6 +21,7 @@ import datetime as dt
 import sys
 
 from experiments.benchmark.run import ALL_STAGES, run_benchmark
+from rp_jax import command_line, progress
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,7 +38,9 @@ def main(argv: list[str] | None = None) -> int:
         help=f"stages to run, of {', '.join(ALL_STAGES)} (default all)",
     )
     parser.add_argument("--out", default="runs/benchmark", help="output directory")
-    parser.add_argument("--size", choices=("tiny", "full"), default="full", help="problem size")
+    parser.add_argument("--size", choices=("tiny", "full"), default="full",
+                        help="size of the synthetic world and maps timed: tiny (tests, "
+                        "seconds) or full (default full)")
     parser.add_argument(
         "--repeats", type=int, default=5, help="timed rounds per stage (after warm-up)"
     )
@@ -46,7 +50,10 @@ def main(argv: list[str] | None = None) -> int:
         default="auto",
         help="also measure torch.compile (auto: at full size only; compiling takes a minute)",
     )
+    command_line.add_quiet(parser)
     args = parser.parse_args(argv)
+    if args.quiet:
+        progress.set_quiet()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
     unknown = [s for s in args.stages if s not in ALL_STAGES]

@@ -2,8 +2,9 @@
 
 Builds (or reuses) the dataset, trains the repeatability predictor, evaluates it on the test
 slice against the baselines (and per category, Fig. 9) and writes metrics.json, report.md
-and the figures into the workdir. Flags: --workdir, --data-dir, --size tiny|small|full,
---tfds-dir, --config.FIELD=VALUE.
+and the figures into the workdir. Flags (``--help``): --workdir, --manual-dir,
+--size tiny|small|full, --data-dir, --config FILE, --config.FIELD=VALUE, --print-config,
+--quiet, --cross-validate, --folds.
 """
 
 import sys

@@ -6,10 +6,11 @@ with the paper's RP protocol (rp_paper), the recommended RP method (rp), K-cover
 most-observed and two oracles, localizes the queries of every date and writes metrics.json
 (accuracy with 95 % bootstrap intervals, paired counts and exact McNemar p-values against
 K-cover, inlier AUCs), report.md, the Fig. 11 figures and per-seed submissions into the
-workdir. Flags: --workdir, --data-dir, --size tiny|small|full (default small here),
---seeds 0,1,2, --tfds-dir, --config.FIELD=VALUE.
+workdir. Flags: --workdir, --manual-dir, --size tiny|small|full (default small here),
+--seeds 0,1,2, --data-dir, --config FILE, --config.FIELD=VALUE, --print-config, --quiet.
 """
 
+import argparse
 import sys
 
 from experiments import cli
@@ -19,51 +20,44 @@ NAME = "map_summarization"
 DEFAULT_SIZE = "small"  # the whole run in under 20 minutes on 2 cores (see README)
 
 
-def _pop_seeds(argv: list[str]) -> tuple[list[str], tuple[int, ...] | None]:
-    """Remove ``--seeds A,B`` / ``--seeds=A,B`` from argv; returns (rest, seeds or None)."""
-    rest, seeds = [], None
-    i = 0
-    while i < len(argv):
-        a = argv[i]
-        text = None
-        if a == "--seeds":
-            if i + 1 >= len(argv):
-                raise SystemExit("--seeds needs a value such as 0,1,2")
-            text, i = argv[i + 1], i + 2
-        elif a.startswith("--seeds="):
-            text, i = a.split("=", 1)[1], i + 1
-        else:
-            rest.append(a)
-            i += 1
-            continue
-        try:
-            seeds = tuple(int(s) for s in text.split(",") if s.strip())
-        except ValueError:
-            raise SystemExit(
-                f"--seeds {text}: expected comma-separated integers such as 0,1,2"
-            ) from None
-        if not seeds or any(s < 0 for s in seeds):
-            raise SystemExit(f"--seeds {text}: expected non-negative integers such as 0,1,2")
-    return rest, seeds
+def _seeds(text: str) -> tuple[int, ...]:
+    try:
+        seeds = tuple(int(s) for s in text.split(",") if s.strip())
+    except ValueError:
+        seeds = ()
+    if not seeds or any(s < 0 for s in seeds):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected comma-separated non-negative integers such as 0,1,2")
+    return seeds
+
+
+def _add_flags(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seeds", type=_seeds, default=None, metavar="A,B,...",
+                        help="synthetic world seeds the maps are built on (default "
+                        "--config.map.seeds, 0,1,2)")
 
 
 def parse(argv: list[str] | None = None):
     """(config, workdir) of the command line; ``--size`` defaults to ``DEFAULT_SIZE``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    argv, seeds = _pop_seeds(argv)
-    if not any(a == "--size" or a.startswith("--size=") for a in argv):
-        argv = ["--size", DEFAULT_SIZE, *argv]
-    config, workdir = cli.parse(argv, NAME, get_config, __doc__)
-    if seeds is not None:
-        config.map.seeds = seeds
+    config, workdir, _ = _parse(argv)
     return config, workdir
+
+
+def _parse(argv):
+    config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
+                                            default_size=DEFAULT_SIZE, add_flags=_add_flags)
+    if args.seeds is not None:
+        config.map.seeds = args.seeds
+    return config, workdir, args
 
 
 def main(argv: list[str] | None = None) -> int:
     """Parse the flags, run the experiment and print the accuracy table."""
-    config, workdir = parse(argv)
-    from rp_jax import platform
+    config, workdir, args = _parse(argv)
+    from rp_jax import platform, progress
 
+    if args.quiet:
+        progress.set_quiet()
     platform.configure_cpu()
     from experiments.map_summarization import experiment
     from rp_jax.sources.layout import LayoutError
@@ -75,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         metrics = experiment.run(config, workdir)
-    except LayoutError as e:  # a --data-dir that is not the dataset's layout
+    except LayoutError as e:  # a --manual-dir that is not the dataset's layout
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")

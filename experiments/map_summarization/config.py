@@ -11,10 +11,10 @@ world seeds (``--seeds``). The training fields are those of
 ``experiments/sec4a/config.py``; everything about the map lives in ``config.map`` (so
 changing it never invalidates a trained RP in ``<workdir>/rp``).
 
-Default size: ``small`` (the entry point adds ``--size small`` unless told otherwise):
+Default size: ``small`` (the entry point's ``--size`` defaults to small):
 RobotCar small (9 traversals x 8 viewpoints, 320x240) and the CMU small map (20 reference
 images at 512x384, 20 queries). ``full`` (RobotCar at 1280x960, CMU at 1024x768) renders
-for about an hour on 2 cores and is not the default. ``--data-dir DIR`` expects the real
+for about an hour on 2 cores and is not the default. ``--manual-dir DIR`` expects the real
 downloads in ``DIR/robotcar`` and ``DIR/cmu_seasons`` (or set ``--config.map.robotcar_dir``
 and ``--config.map.root``).
 """
@@ -39,7 +39,7 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     # vocabulary and RANSAC seed there). Results are pooled over seeds.
     m.seeds = (0,) if size == "tiny" else (0, 1, 2)
     m.root = ""  # an Extended CMU Seasons layout to use instead (real or synthetic)
-    m.robotcar_dir = ""  # the real RobotCar download (default <--data-dir>/robotcar)
+    m.robotcar_dir = ""  # the real RobotCar download (default <--manual-dir>/robotcar)
     m.slice = 8  # the paper's region 8
     # Query dates (ISO); empty = every query date of the layout (the synthetic small world:
     # the 11 dates other than the reference traversal's Apr 21).

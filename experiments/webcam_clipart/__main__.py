@@ -2,7 +2,8 @@
 
 Builds (or reuses) the dataset, trains the repeatability predictor, evaluates it on the test
 viewpoint against the baselines and writes metrics.json, report.md and the figures into the
-workdir. Flags: --workdir, --data-dir, --size tiny|small|full, --tfds-dir, --config.FIELD=VALUE.
+workdir. Flags (``--help``): --workdir, --manual-dir, --size tiny|small|full, --data-dir,
+--config FILE, --config.FIELD=VALUE, --print-config, --quiet, --cross-validate, --folds.
 """
 
 import sys

@@ -1,7 +1,16 @@
 """Command line of the keypoint-record datasets (Sec. III-D, Fig. 6, Fig. 9).
 
-    python -m rp_jax.datasets build NAME [--config CONFIG] [--manual-dir DIR] [--data-dir DIR]
-    python -m rp_jax.datasets curves NAME [--config CONFIG] [--data-dir DIR] --out PNG
+    python -m rp_jax.datasets build NAME [--size tiny|small|full | --manual-dir DIR | --real]
+                                         [--data-dir DIR] [--quiet]
+    python -m rp_jax.datasets curves NAME [--size tiny|small|full | --real] [--data-dir DIR]
+                                          --out PNG
+
+The flags mean what they mean in every command of the project (``rp_jax.command_line``):
+``--data-dir`` is the TFDS data directory the dataset is built in, ``--manual-dir`` the real
+download it is built from (which selects the real data), ``--size`` the size of the
+synthetic world otherwise; ``--real`` selects the real data at TFDS's default manual dir
+(``<data-dir>/downloads/manual``). ``--config NAME`` (a TFDS builder config) still works
+this release, with a warning.
 
 ``build`` builds (or finds already built) the TFDS dataset and prints the number of
 records per split, per timestamp (the slot of the image an interest point comes from) and
@@ -20,7 +29,13 @@ import sys
 import time
 from pathlib import Path
 
+from rp_jax import command_line
 from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+from rp_jax.datasets.loading import BUILD_FLAGS, DEFAULT_DATA_DIR
+
+SIZES = ("tiny", "small", "full")
+_CONFIG_OF_SIZE = {"tiny": "synthetic_tiny", "small": "synthetic_small", "full": "synthetic"}
+_FLAGS_OF_CONFIG = {**BUILD_FLAGS, "real": "--real (or --manual-dir DIR)"}
 
 __all__ = ["main"]
 
@@ -35,27 +50,19 @@ def _parser() -> argparse.ArgumentParser:
 
     def common(q):
         q.add_argument("name", choices=DATASET_NAMES, help="dataset")
-        q.add_argument(
-            "--config",
-            default="synthetic",
-            choices=CONFIG_NAMES,
-            help="builder config (default: synthetic)",
-        )
-        q.add_argument(
-            "--data-dir",
-            type=Path,
-            default=None,
-            help="TFDS data directory (default: $RP_JAX_DATA_DIR or ./data/tensorflow_datasets)",
-        )
+        q.add_argument("--size", choices=SIZES, default=None,
+                       help=command_line.SIZE_HELP.format(default="full"))
+        q.add_argument("--real", action="store_true",
+                       help="the real data (TFDS builder config real) instead of the synthetic "
+                       "world")
+        # Released spelling: a TFDS builder config name; --size / --real say the same.
+        q.add_argument("--config", dest="config_name", choices=CONFIG_NAMES, default=None,
+                       help=argparse.SUPPRESS)
+        command_line.add_data_dir(q, default=str(DEFAULT_DATA_DIR))
 
     b = sub.add_parser("build", help="build a dataset and print its counts")
     common(b)
-    b.add_argument(
-        "--manual-dir",
-        type=Path,
-        default=None,
-        help="folder of the downloaded real dataset (config real)",
-    )
+    command_line.add_manual_dir(b)
     b.add_argument(
         "--synthetic-root",
         type=Path,
@@ -68,6 +75,7 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="processes labelling viewpoints (default: min(2, cores))",
     )
+    command_line.add_quiet(b)
     c = sub.add_parser("curves", help="write the average ground-truth curves as PNGs")
     common(c)
     c.add_argument("--out", type=Path, required=True, help="PNG of the per-split curves")
@@ -104,10 +112,9 @@ def _print_counts(name: str, config: str, data_dir) -> None:
 def _build(args) -> int:
     from rp_jax.datasets import loading, provenance
 
-    if args.manual_dir is not None and args.config != "real":
-        raise _UsageError(f"--manual-dir is for --config real, not {args.config}")
     if args.synthetic_root is not None and args.config == "real":
-        raise _UsageError("--synthetic-root is for the synthetic configs, not real")
+        raise _UsageError("--synthetic-root is for the synthetic world, not the real data "
+                          "(--manual-dir / --real)")
     if args.workers is not None and args.workers < 1:
         raise _UsageError(f"--workers must be >= 1, got {args.workers}")
     if args.manual_dir is not None and not args.manual_dir.is_dir():
@@ -197,9 +204,32 @@ class _UsageError(Exception):
     """A bad combination of arguments: printed without a traceback, exit status 2."""
 
 
+def _builder_config(prog: str, args) -> str:
+    """The TFDS builder config the flags select (``--size`` / ``--manual-dir`` / ``--real``)."""
+    manual_dir = getattr(args, "manual_dir", None)
+    real = args.real or manual_dir is not None
+    if args.config_name is not None:  # the released spelling
+        command_line.deprecation_warning(prog, f"--config {args.config_name}",
+                                         _FLAGS_OF_CONFIG[args.config_name])
+        if args.size is not None or (real and args.config_name != "real"):
+            raise _UsageError(f"--config {args.config_name} and "
+                              f"{'--size' if args.size else '--manual-dir/--real'} disagree: "
+                              "give only --size, or --manual-dir / --real")
+        return args.config_name
+    if real and args.size is not None:
+        raise _UsageError(f"--size {args.size} is the synthetic world's size; --manual-dir / "
+                          "--real select the real data: give one or the other")
+    return "real" if real else _CONFIG_OF_SIZE[args.size or "full"]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit status."""
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "quiet", False):
+        from rp_jax import progress
+
+        progress.set_quiet()
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     for noisy in ("absl", "matplotlib"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
@@ -208,9 +238,10 @@ def main(argv: list[str] | None = None) -> int:
     from rp_jax.sources.synthetic.output_folder import OutputFolderError
 
     try:
+        args.config = _builder_config(f"{parser.prog} {args.command}", args)
         return _build(args) if args.command == "build" else _curves(args)
     except (_UsageError, NotBuiltError, LayoutError, OutputFolderError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"{parser.prog} {args.command}: error: {err}", file=sys.stderr)
         return 2
 
 

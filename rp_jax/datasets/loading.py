@@ -62,6 +62,11 @@ class NotBuiltError(FileNotFoundError):
     """The dataset/config has not been built in that data directory."""
 
 
+# The command-line flags that select each builder config (rp_jax.command_line's vocabulary).
+BUILD_FLAGS = {"synthetic": "--size full", "synthetic_small": "--size small",
+               "synthetic_tiny": "--size tiny", "real": "--manual-dir DIR"}
+
+
 def default_data_dir() -> Path:
     """``$RP_JAX_DATA_DIR`` if set, else ``DEFAULT_DATA_DIR`` (see the module docstring)."""
     return Path(os.environ.get("RP_JAX_DATA_DIR", DEFAULT_DATA_DIR))
@@ -106,7 +111,7 @@ def _built_builder(name: str, config: str, data_dir, split: str | None):
     if not builder.is_prepared():
         raise NotBuiltError(
             f"{name}/{config} is not built in {builder.data_dir}; build it with "
-            f"`python -m rp_jax.datasets build {name} --config {config} --data-dir "
+            f"`python -m rp_jax.datasets build {name} {BUILD_FLAGS[config]} --data-dir "
             f"{Path(builder._data_dir_root)}`"
         )
     if split is not None and split not in builder.info.splits:

@@ -19,7 +19,7 @@ convention: ``rp_jax.sources.capture``'s (OpenCV's, hloc's): the top-left pixel'
 
 Command::
 
-    python -m rp_jax.keypoints IMAGE... --model MODEL --captured "2024-06-01 09:30" \\
+    python -m rp_jax.keypoints IMAGE... --predictor MODEL --captured "2024-06-01 09:30" \\
         [--at "2024-12-01 17:00"] [--features features.h5] --out DIR
 
 writes ``DIR/<stem>.npz`` (xy, scale, score, curves, schedule_labels, captured, at,

@@ -13,6 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from rp_jax import command_line
 from rp_jax.commands import InputError, datetime_flag, load_predictor, run_command
 from rp_jax.keypoints import (
     DEFAULT_MAX_KEYPOINTS,
@@ -82,7 +83,7 @@ def run(
     times = CaptureTimes(captured, hint="give --captured TIME")
     whens = [times(p) for p in paths]  # every capture time is known before any work
     names = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
-    predictor = predictor if predictor is not None else load_predictor(model)
+    predictor = predictor if predictor is not None else load_predictor(model, "--predictor")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     results = []
@@ -124,10 +125,10 @@ def _parser() -> argparse.ArgumentParser:
         "Writes DIR/<stem>.npz and DIR/<stem>_repeatability.png per image.",
     )
     p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (JPEG, PNG, ...)")
-    p.add_argument("--model", required=True, metavar="MODEL",
-                   help="trained predictor: a workdir with config.json, schedule.json and "
-                   "checkpoints/ (python -m experiments.webcam_clipart writes one), or a "
-                   "model shipped in the package (webcam_clipart-synthetic, "
+    p.add_argument("--predictor", metavar="MODEL",
+                   help="(required) trained predictor: a workdir with config.json, "
+                   "schedule.json and checkpoints/ (python -m experiments.webcam_clipart "
+                   "writes one), or a model shipped in the package (webcam_clipart-synthetic, "
                    "cmu_seasons-synthetic, robotcar-synthetic)")
     p.add_argument("--captured", type=datetime_flag, metavar="TIME",
                    help='capture time of every IMAGE on its own wall clock, e.g. "2024-06-01 '
@@ -136,6 +137,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--at", type=datetime_flag, metavar="TIME",
                    help="query time the score (and the overlay colour) is read at; default: "
                    "the capture time")
+    command_line.deprecated_alias(p, "--model", "--predictor", dest="predictor")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     p.add_argument("--features", metavar="FILE",
                    help="hloc features.h5 whose keypoints to use instead of detecting SIFT "
@@ -148,13 +150,16 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the flags, run, print one line per image."""
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.predictor is None:
+        parser.error("the following arguments are required: --predictor")
     from rp_jax import platform
 
     platform.configure_cpu()
 
     def body() -> int:
-        results = run(args.images, args.model, args.out, captured=args.captured, at=args.at,
+        results = run(args.images, args.predictor, args.out, captured=args.captured, at=args.at,
                       features=args.features, max_keypoints=args.max_keypoints,
                       overlay=not args.no_overlay)
         for r in results:

@@ -12,8 +12,10 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
-from rp_jax.commands import run_command
+from rp_jax import command_line, progress
+from rp_jax.commands import InputError, run_command
 from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS
 from rp_jax.localize.run import SUBMISSION, localize_folder, threshold_key
 
@@ -61,14 +63,21 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-keypoints", type=int, default=4000, metavar="N",
                    help="SIFT keypoints per image (default 4000)")
     p.add_argument("--seed", type=int, default=0, help="RANSAC (and VLAD) seed (default 0)")
+    command_line.add_quiet(p)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the flags, localize, print the counts and the accuracy table."""
     args = _parser().parse_args(argv)
+    if args.quiet:
+        progress.set_quiet()
 
     def body() -> int:
+        for flag, folder, what in (("--map", args.map, "map folder"),
+                                   ("--queries", args.queries, "folder of query images")):
+            if not Path(folder).is_dir():
+                raise InputError(f"{flag} {folder}: no such {what}")
         result = localize_folder(
             args.map, args.queries, args.out, ground_truth=args.ground_truth,
             images=args.images, features=args.features, global_features=args.global_features,

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from rp_jax import command_line, progress
 from rp_jax.commands import (
     INPUT_ERRORS,
     InputError,
@@ -82,6 +83,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="SIFT keypoints re-detected per database image (default 4000)")
     s.add_argument("--seed", type=int, default=0,
                    help="seed of k-means, --method random and VLAD (default 0)")
+    command_line.add_quiet(s)
     return p
 
 
@@ -136,6 +138,8 @@ def _summarize(args) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the flags and run the subcommand."""
     args = _parser().parse_args(argv)
+    if args.quiet:
+        progress.set_quiet()
     return run_command(PROG, lambda: _summarize(args))
 
 

@@ -28,7 +28,7 @@ def _download(root, seed):
 
 
 def _build(manual, tfds_dir):
-    return cli.main(["build", "webcam_clipart", "--config", "real", "--manual-dir", str(manual),
+    return cli.main(["build", "webcam_clipart", "--manual-dir", str(manual),
                      "--data-dir", str(tfds_dir), "--workers", "1"])
 
 

@@ -40,7 +40,7 @@ def tiny_run(tmp_path_factory):
         "tiny",
         "--workdir",
         str(workdir),
-        "--tfds-dir",
+        "--data-dir",
         str(tmp / "tfds"),
         "--config.num_epochs=1",
         f"--config.map.ratios=({','.join(RATIOS)})",
@@ -175,7 +175,7 @@ def test_default_size_seeds_and_overrides():
 
 
 def test_rp_config_drops_map_fields(tmp_path):
-    config, _ = parse(["--size", "tiny", "--data-dir", str(tmp_path)])
+    config, _ = parse(["--size", "tiny", "--manual-dir", str(tmp_path)])
     cfg = rp_config(config)
     assert "map" not in cfg and "map" in config
     assert cfg.manual_dir == str(tmp_path.absolute() / "robotcar")
@@ -284,9 +284,9 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     kept = sorted(poses)[::2]
     (root / presets.EVALUATION_DIR / "ground-truth-query-images-slice8.txt").unlink()
     write_layout.write_cmu_query_poses(root / "slice8", [(n, *poses[n]) for n in kept])
-    tfds_dir = argv[argv.index("--tfds-dir") + 1]
+    tfds_dir = argv[argv.index("--data-dir") + 1]
     half = [
-        "--size", "tiny", "--workdir", str(tmp_path / "run"), "--tfds-dir", tfds_dir,
+        "--size", "tiny", "--workdir", str(tmp_path / "run"), "--data-dir", tfds_dir,
         "--config.num_epochs=1", f"--config.map.root={root}", "--config.map.ratios=(0.5,)",
     ]
     assert main(half) == 0

@@ -39,7 +39,7 @@ def _not_blank(path):
 )
 def test_experiment_tiny(tmp_path, monkeypatch, name, get_config, figures):
     workdir = tmp_path / "run"
-    argv = ["--size", "tiny", "--workdir", str(workdir), "--tfds-dir", str(tmp_path / "tfds")]
+    argv = ["--size", "tiny", "--workdir", str(workdir), "--data-dir", str(tmp_path / "tfds")]
     # As if run as `python -m experiments.<name> ARGV`: the report must record that command.
     monkeypatch.setattr(sys, "orig_argv", ["/venv/bin/python3", "-m", f"experiments.{name}", *argv])
     assert cli.main(argv, name, get_config, "") == 0
@@ -77,17 +77,23 @@ def _check_provenance(report: str, command: str) -> None:
 def test_cli_rejects_bad_arguments(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.parse(["--size", "huge"], "webcam_clipart", webcam_config, "")
-    with pytest.raises(SystemExit, match="no such field"):
-        cli.parse(["--config.num_epoch=3"], "webcam_clipart", webcam_config, "")
-    with pytest.raises(SystemExit, match="num_epochs=three"):
-        cli.parse(["--config.num_epochs=three"], "webcam_clipart", webcam_config, "")
+    for argv, message in ((["--config.num_epoch=3"], "--config.num_epoch: no such field"),
+                          (["--config.num_epochs=three"], "--config.num_epochs=three: invalid")):
+        with pytest.raises(SystemExit) as exit_info:
+            cli.parse(argv, "webcam_clipart", webcam_config, "")
+        assert exit_info.value.code == 2 and message in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        cli.parse(["--data-dir", str(tmp_path / "missing")], "webcam_clipart", webcam_config, "")
+        cli.parse(["--manual-dir", str(tmp_path / "missing")], "webcam_clipart", webcam_config, "")
+    with pytest.raises(SystemExit):
+        cli.parse(["--frobnicate"], "webcam_clipart", webcam_config, "")
+    with pytest.raises(SystemExit):
+        cli.parse(["--config", str(tmp_path / "none.py")], "webcam_clipart", webcam_config, "")
     config, workdir = cli.parse(
         [
             "--config.num_epochs=3",
             "--config.model.encoder_channels=(8, 8, 16)",
-            "--data-dir",
+            "--config.augment.flip=no",  # the earlier parser's yes/no for a bool
+            "--manual-dir",
             str(tmp_path),
         ],
         "cmu_seasons",
@@ -95,7 +101,51 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
         "",
     )
     assert config.num_epochs == 3 and tuple(config.model.encoder_channels) == (8, 8, 16)
+    assert config.augment.flip is False
     assert config.data_config == "real" and workdir.name == "cmu_seasons_real"
+    assert config.manual_dir == str(tmp_path.absolute()) and config.data_dir == ""
+
+
+def test_cli_data_dir_is_the_tfds_folder_and_old_spellings_warn(tmp_path, capsys):
+    # --data-dir is the TFDS data directory, as in python -m rp_jax.datasets and TFDS.
+    config, workdir = cli.parse(["--size", "tiny", "--data-dir", str(tmp_path / "tfds")],
+                                "webcam_clipart", webcam_config, "")
+    assert config.data_dir == str(tmp_path / "tfds") and config.data_config == "synthetic_tiny"
+    assert config.manual_dir == "" and workdir.name == "webcam_clipart_tiny"
+    assert capsys.readouterr().err == ""
+    # Released spellings work one more release, with a warning on stderr.
+    config, _ = cli.parse(["--tfds-dir", str(tmp_path / "tfds")], "webcam_clipart",
+                          webcam_config, "")
+    assert config.data_dir == str(tmp_path / "tfds")
+    assert "--tfds-dir is deprecated" in capsys.readouterr().err
+    download = tmp_path / "download"
+    (download / "scene_00").mkdir(parents=True)  # files, no built dataset: the old meaning
+    config, workdir = cli.parse(["--data-dir", str(download)], "webcam_clipart", webcam_config,
+                                "")
+    assert config.data_config == "real" and config.manual_dir == str(download.absolute())
+    assert config.data_dir == "" and workdir.name == "webcam_clipart_real"
+    err = capsys.readouterr().err
+    assert "is deprecated" in err and f"use --manual-dir {download}" in err
+
+
+def test_cli_config_file_and_print_config(tmp_path, capsys):
+    # --config FILE[:ARG] is ml_collections.config_flags' own; --size is the ARG of the default.
+    path = "experiments/cmu_seasons/config.py"
+    config, workdir = cli.parse(["--config", f"{path}:tiny", "--config.seed=7"],
+                                "webcam_clipart", webcam_config, "")
+    assert config.dataset == "cmu_seasons" and config.data_config == "synthetic_tiny"
+    assert config.seed == 7 and workdir.name == "webcam_clipart_cmu_seasons_tiny"
+    config, _ = cli.parse(["--config", path, "--size", "small"], "webcam_clipart",
+                          webcam_config, "")
+    assert config.data_config == "synthetic_small"
+    with pytest.raises(SystemExit) as exit_info:
+        cli.parse(["--size", "tiny", "--config.num_epochs", "5", "--print-config"],
+                  "webcam_clipart", webcam_config, "")
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "num_epochs: 5\n" in out and "data_config: synthetic_tiny\n" in out
+    help_text = cli.build_parser("webcam_clipart", "").format_help()
+    assert "--config FILE[:ARG]" in help_text and "--config.FIELD=VALUE" in help_text
 
 
 def test_split_validation_holds_out_whole_viewpoints():
@@ -111,7 +161,7 @@ def test_split_validation_holds_out_whole_viewpoints():
 def test_cross_validate_flag_needs_two_training_viewpoints(tmp_path, capsys):
     # The tiny synthetic world has one training scene: a clear error, not a traceback.
     argv = ["--size", "tiny", "--workdir", str(tmp_path / "run"),
-            "--tfds-dir", str(tmp_path / "tfds"), "--cross-validate"]
+            "--data-dir", str(tmp_path / "tfds"), "--cross-validate"]
     assert cli.main(argv, "webcam_clipart", webcam_config, "") == 2
     assert "at least 2 training viewpoints" in capsys.readouterr().err
     with pytest.raises(SystemExit):

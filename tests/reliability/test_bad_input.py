@@ -114,7 +114,7 @@ class Case:
 def _datasets_build(name: str, manual: Path, tfds_dir: Path) -> Callable[[], int]:
     from rp_jax.datasets import __main__ as datasets_cli
 
-    return lambda: datasets_cli.main(["build", name, "--config", "real", "--manual-dir",
+    return lambda: datasets_cli.main(["build", name, "--manual-dir",
                                       str(manual), "--data-dir", str(tfds_dir), "--workers", "1"])
 
 

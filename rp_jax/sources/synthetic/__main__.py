@@ -19,6 +19,7 @@ import logging
 import sys
 from pathlib import Path
 
+from rp_jax import command_line
 from rp_jax.sources.synthetic.presets import PRESET_NAMES, SIZES, generate
 
 CONTACT_SHEET = "contact-sheet"
@@ -58,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--size",
             choices=SIZES,
             default="full",
-            help="tiny: tests, seconds; small: a quick look; full: the paper's scale",
+            help=command_line.SIZE_HELP.format(default="full"),
         )
         p.add_argument("--seed", type=_non_negative_int, default=0, help="world seed")
         p.add_argument(
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
             default=None,
             help="rendering processes (default: one per core)",
         )
-        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        command_line.add_quiet(p)
         p.add_argument(
             "--overwrite",
             action="store_true",
