@@ -257,18 +257,21 @@ def main(argv, name: str, get_config, doc: str) -> int:
     if args.quiet:
         progress.set_quiet()
     platform.configure_cpu()
+    from experiments.sec4a import config as sec4a_config
     from experiments.sec4a import experiment
     from rp_jax import train
     from rp_jax.sources.layout import LayoutError
 
     try:
+        sec4a_config.validate(config, workdir)  # before any build: one line, exit 2
         if args.cross_validate:
             return _cross_validate(config, Path(workdir) / "crossval", args.folds)
         metrics = experiment.run(config, workdir)
     except LayoutError as e:  # a --manual-dir that is not the dataset's layout: what is missing
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
-    except train.WorkdirMismatchError as e:  # a workdir this config cannot resume
+    except (train.ConfigError, train.WorkdirMismatchError) as e:  # a field out of range, or
+        # a workdir this config cannot resume
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
     except train.NonFiniteLossError as e:  # diverged: nothing of it was saved or reported

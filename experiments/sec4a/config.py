@@ -4,6 +4,8 @@ Sizes: ``tiny`` (seconds; tests), ``small`` (minutes), ``full`` (the default syn
 sized so a whole run stays well under 15 minutes on 2 CPU cores).
 """
 
+from pathlib import Path
+
 import ml_collections
 
 from rp_jax.configs import default
@@ -32,3 +34,42 @@ def get_config(size: str = "full") -> ml_collections.ConfigDict:
     config.augment.flip = True
     config.keep_best = True  # model selection on the validation viewpoints
     return config
+
+
+def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
+    """Refuse a config (or ``workdir``) that cannot run, before any expensive stage.
+
+    Raises ``rp_jax.train.ConfigError`` naming the first field out of range (the training
+    fields through ``train.validate_config``, then this experiment's own), and
+    ``train.WorkdirMismatchError`` for a ``workdir`` that is a file or holds a run of another
+    model or data. A bad value otherwise surfaces only after the dataset is built (minutes)
+    or as a traceback from deep inside.
+    """
+    from rp_jax import schedule as schedule_lib
+    from rp_jax import train
+    from rp_jax.datasets import CONFIG_NAMES, DATASET_NAMES
+
+    def expect(ok: bool, field: str, expected: str) -> None:
+        if not ok:
+            raise train.ConfigError(f"config.{field}={config.get(field)!r}: expected {expected}")
+
+    train.validate_config(config)
+    expect(config.dataset in DATASET_NAMES, "dataset", f"one of {list(DATASET_NAMES)}")
+    expect(config.data_config in CONFIG_NAMES, "data_config", f"one of {list(CONFIG_NAMES)}")
+    # The records are labelled at the dataset's own timestamps: another schedule has another T.
+    expect(config.schedule == config.dataset, "schedule",
+           f"{config.dataset!r}, the timestamps {config.dataset}'s records are labelled at "
+           f"(T = {schedule_lib.preset(config.dataset).num_timestamps})")
+    fraction = config.validation_fraction
+    expect(isinstance(fraction, (int, float)) and not isinstance(fraction, bool)
+           and 0 <= fraction < 1, "validation_fraction",
+           "a number in [0, 1): the share of training viewpoints held out (0: none)")
+    expect(isinstance(config.knn_k, int) and not isinstance(config.knn_k, bool)
+           and config.knn_k >= 1, "knn_k", "an integer >= 1")
+    if config.data_config == "real":
+        expect(bool(config.manual_dir), "manual_dir",
+               "the folder of the real download (--manual-dir) with data_config 'real'")
+    if config.manual_dir:
+        expect(Path(config.manual_dir).is_dir(), "manual_dir", "an existing folder")
+    if workdir is not None:
+        train.check_workdir(workdir, config)
