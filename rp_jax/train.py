@@ -37,12 +37,11 @@ from flax.training import train_state
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from rp_jax import checkpoints, files, losses, time_encoding
+from rp_jax import checkpoints, distributed, files, losses, time_encoding
 from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
 from rp_jax.datasets import input_pipeline
 from rp_jax.model import create_model
-from rp_jax.platform import make_mesh
 
 __all__ = [
     "TrainState",
@@ -315,7 +314,7 @@ def evaluate(params, source, compiled: _Compiled, batch_size: int) -> dict[str, 
     """Masked MSE (the paper's loss) and MAE over a whole source."""
     totals: dict[str, float] = {}
     for batch in input_pipeline.eval_batches(source, batch_size):
-        out = compiled.evaluate(params, jax.device_put(_model_batch(batch), compiled.data))
+        out = compiled.evaluate(params, distributed.put(_model_batch(batch), compiled.data))
         for k, v in out.items():
             totals[k] = totals.get(k, 0.0) + float(v)
     return {
@@ -455,7 +454,7 @@ def train_and_evaluate(
         raise ValueError(f"labels have shape {label_shape[1:]} but schedule {schedule.name!r} "
                          f"has T={T}")
 
-    mesh = make_mesh(config.num_devices)
+    mesh = distributed.make_mesh(config.num_devices)  # all processes' devices
     n_dev = mesh.devices.size
     if config.batch_size % n_dev or config.eval_batch_size % n_dev:
         raise ValueError(f"batch sizes must be divisible by the {n_dev} devices")
@@ -481,7 +480,7 @@ def train_and_evaluate(
         start_epoch = int(restored["step"]) // steps_per_epoch
         log.info("resumed from step %d (epoch %d) in %s", int(restored["step"]), start_epoch,
                  workdir)
-    state = jax.device_put(state, compiled.replicated)
+    state = distributed.put(state, compiled.replicated)
 
     metrics_path = workdir / "metrics.jsonl"
     keep_best = config.keep_best and val_source is not None
@@ -490,14 +489,16 @@ def train_and_evaluate(
     try:
         for epoch in range(start_epoch, int(config.num_epochs)):
             t0 = time.perf_counter()
+            rows = distributed.process_rows(compiled.data, config.batch_size)
             batches = input_pipeline.epoch_batches(train_source, config.batch_size,
-                                                   seed=config.seed, epoch=epoch)
+                                                   seed=config.seed, epoch=epoch, rows=rows)
             losses_sum = jnp.zeros(())
             bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
-                       disable=not progress, leave=False)
+                       disable=not progress or not distributed.is_primary(), leave=False)
             previous = None  # checked one step late, so the host never waits on the device
             for i in bar:
-                batch = jax.device_put(_model_batch(batches[i]), compiled.data)
+                batch = distributed.put_process_rows(_model_batch(batches[i]), compiled.data,
+                                                     config.batch_size)
                 state, m = compiled.train(state, batch)
                 losses_sum = losses_sum + m["loss"]
                 if previous is not None:
@@ -531,9 +532,10 @@ def train_and_evaluate(
                 manager.save(int(state.step),
                              args=ocp.args.StandardSave(checkpoints.state_tree(state)))
                 manager.wait_until_finished()
-            with open(metrics_path, "a") as f:
-                f.write(json.dumps(record) + "\n")
-            if progress:
+            if distributed.is_primary():  # one line per epoch, whatever the process count
+                with open(metrics_path, "a") as f:
+                    f.write(json.dumps(record) + "\n")
+            if progress and distributed.is_primary():
                 shown = {k: round(v, 5) if isinstance(v, float) else v for k, v in record.items()}
                 tqdm.write(json.dumps(shown))
             if on_epoch_end is not None:

@@ -65,12 +65,15 @@ def num_train_steps(num_records: int, batch_size: int) -> int:
     return num_records // batch_size
 
 
-def epoch_batches(source: ArraySource, batch_size: int, *, seed: int,
-                  epoch: int) -> grain.MapDataset:
+def epoch_batches(source: ArraySource, batch_size: int, *, seed: int, epoch: int,
+                  rows: slice | None = None) -> grain.MapDataset:
     """The training batches of one epoch as a random-access grain dataset.
 
     ``epoch_batches(...)[i]`` is the i-th batch of the epoch; the order depends only on
-    (seed, epoch).
+    (seed, epoch). With ``rows`` (``rp_jax.distributed.process_rows``, training across
+    processes), each is only those rows of the i-th global batch of ``batch_size``: a
+    process reads its own shard of the shuffled index, and the processes' shards together
+    are the batch one process would read.
     """
     if len(source) < batch_size:
         raise ValueError(
@@ -82,6 +85,8 @@ def epoch_batches(source: ArraySource, batch_size: int, *, seed: int,
         .shuffle(seed=_epoch_seed(seed, epoch))
         .batch(batch_size, drop_remainder=True)
     )
+    if rows is not None:
+        indices = indices.map(lambda idx: idx[rows])
     return indices.map(lambda idx: _with_mask(source.take(np.asarray(idx)), len(idx)))
 
 
