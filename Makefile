@@ -5,8 +5,13 @@ PYTHON ?= python3.11
 VENV ?= .venv
 PY := $(VENV)/bin/python
 INSTALLED := $(VENV)/.installed
+# apache-beam pins protobuf and pyarrow below what the rest resolves to (6.33 / 25 against
+# 7.x / 26), so the Beam build is tested in an environment of its own.
+BEAM_VENV ?= .venv-beam
+BEAM_PY := $(BEAM_VENV)/bin/python
+BEAM_INSTALLED := $(BEAM_VENV)/.installed
 
-.PHONY: demo test install bench lint clean
+.PHONY: demo test test-beam install bench lint clean
 
 install: $(INSTALLED)
 
@@ -30,9 +35,22 @@ test: $(INSTALLED)
 lint: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
 
+# The TFDS builders under Apache Beam's DirectRunner (2 processes), in .venv-beam; .ci/run
+# calls it after `make test`.
+$(BEAM_PY):
+	$(PYTHON) -m venv $(BEAM_VENV) || python3 -m venv $(BEAM_VENV)
+
+$(BEAM_INSTALLED): pyproject.toml | $(BEAM_PY)
+	$(BEAM_PY) -m pip install --quiet --upgrade pip
+	$(BEAM_PY) -m pip install --quiet -e ".[test,beam]"
+	touch $(BEAM_INSTALLED)
+
+test-beam: $(BEAM_INSTALLED)
+	RP_JAX_REQUIRE_BEAM=1 $(BEAM_PY) -m pytest -q -p no:cacheprovider tests/datasets/test_beam.py
+
 bench: $(INSTALLED)
 	$(PY) -m pip install --quiet -e ".[test,bench]"
 	$(PY) -m experiments.benchmark
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) $(BEAM_VENV) runs .pytest_cache

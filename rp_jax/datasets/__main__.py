@@ -75,6 +75,13 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="processes labelling viewpoints (default: min(2, cores))",
     )
+    b.add_argument(
+        "--beam-pipeline-options",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="label in an Apache Beam pipeline with these options (pip install rp_jax[beam]), "
+        "e.g. runner=DirectRunner,direct_num_workers=2,direct_running_mode=multi_processing",
+    )
     command_line.add_quiet(b)
     c = sub.add_parser("curves", help="write the average ground-truth curves as PNGs")
     common(c)
@@ -126,9 +133,14 @@ def _build(args) -> int:
         synthetic_root=args.synthetic_root,
         workers=args.workers,
     )
+    beam_options = None
+    if args.beam_pipeline_options is not None:
+        from rp_jax.datasets.builder import beam_pipeline_options
+
+        beam_options = beam_pipeline_options(args.beam_pipeline_options)
     start = time.perf_counter()
     # A real dataset already built there must have been built from this --manual-dir.
-    if not provenance.prepare(builder, args.manual_dir):
+    if not provenance.prepare(builder, args.manual_dir, beam_options=beam_options):
         print(f"{args.name}/{args.config} already built in {builder.data_dir}")
     else:
         print(

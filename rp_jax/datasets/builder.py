@@ -12,8 +12,11 @@ Configs: ``synthetic`` (default; renders the synthetic world at full size into
 ``synthetic_tiny`` (tests, quick runs) and ``real`` (reads ``manual_dir``).
 
 Scaling out: ``label_viewpoint_examples(job)`` is a pure, picklable function of one
-``ViewpointJob``; under Apache Beam (``tfds build ... --beam_pipeline_options=...``) the
-builder maps it with ``beam.Create(jobs) | beam.FlatMap(label_viewpoint_examples)``.
+``ViewpointJob``; under Apache Beam (``python -m rp_jax.datasets build ...
+--beam-pipeline-options=...``, or ``DownloadConfig(beam_options=...)``) the builder maps it
+with ``beam.Create(jobs) | beam.Reshuffle() | beam.FlatMap(label_viewpoint_examples)``.
+TFDS orders the records by key either way, so both builds hold the same records in the
+same order (tests/datasets/test_beam.py).
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ __all__ = [
     "RepeatabilityBuilder",
     "RepeatabilityConfig",
     "ViewpointJob",
+    "beam_pipeline_options",
     "builder_configs",
     "label_viewpoint_examples",
     "synthetic_root",
@@ -341,6 +345,14 @@ def _no_bucket() -> None:
     """``DatasetInfo.initialize_from_bucket`` of builders that nothing on GCS describes."""
 
 
+def beam_pipeline_options(text: str):
+    """Beam ``PipelineOptions`` from ``"runner=DirectRunner,direct_num_workers=2"`` (the
+    spelling of ``tfds build --beam_pipeline_options``); needs ``pip install rp_jax[beam]``."""
+    beam = tfds.core.lazy_imports.apache_beam
+    flags = [f"--{item.strip()}" for item in text.split(",") if item.strip()]
+    return beam.options.pipeline_options.PipelineOptions(flags=flags)
+
+
 def _default_workers() -> int:
     try:
         cores = len(os.sched_getaffinity(0))
@@ -462,7 +474,10 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
     def _generate_examples(self, jobs: Sequence[ViewpointJob]):
         if self._use_beam:
             beam = tfds.core.lazy_imports.apache_beam
-            return beam.Create(list(jobs)) | beam.FlatMap(label_viewpoint_examples)
+            # Reshuffle: else a runner fuses the labelling into Create, and the one worker
+            # that made the list labels every viewpoint.
+            return (beam.Create(list(jobs)) | beam.Reshuffle()
+                    | beam.FlatMap(label_viewpoint_examples))
         return self._generate_locally(jobs)
 
     def _generate_locally(self, jobs: Sequence[ViewpointJob]):

@@ -192,13 +192,15 @@ def _manual_dir(builder, manual_dir) -> Path:
     return (Path(builder._data_dir_root) / "downloads" / "manual").absolute()
 
 
-def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
+def prepare(builder, manual_dir: str | os.PathLike | None = None, *, beam_options=None) -> bool:
     """Build ``builder`` unless built; a real build records and checks what it was built from.
 
     Args:
       builder: a ``RepeatabilityBuilder`` (``loading.get_builder``).
       manual_dir: the download a real config reads (default: TFDS's
         ``<data_dir>/downloads/manual``).
+      beam_options: Apache Beam ``PipelineOptions``: label the viewpoints in a Beam pipeline
+        (``builder.beam_pipeline_options``); None: in local processes.
 
     One build of a dataset/config/version at a time (``build_lock``), which first removes
     the partial builds of killed runs.
@@ -219,7 +221,8 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None) -> bool:
         return False
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
-    dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir))
+    dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir),
+                                      beam_options=beam_options)
     with build_lock(builder), _local_build_messages(builder):
         if builder.is_prepared():  # built by another process while this one waited
             return False
