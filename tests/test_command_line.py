@@ -192,6 +192,10 @@ def _error_cases(tmp_path):
         ("experiments.webcam_clipart", ["--config.num_epoch=3"], "--config"),
         ("experiments.webcam_clipart", ["--config", str(tmp_path / "none.py")], "--config"),
         ("experiments.cmu_seasons", ["--folds", "3"], "--folds"),
+        # The "missing real data" error: the layout expected and where to put the download.
+        ("experiments.webcam_clipart", ["--manual-dir", str(download), "--data-dir",
+                                        str(tmp_path / "tfds"), "--workdir", str(tmp_path / "w")],
+         "--manual-dir"),
         ("experiments.map_summarization", ["--seeds", "x"], "--seeds"),
         ("experiments.demo", ["--config.nope=1"], "--config"),
         ("experiments.benchmark", ["--repeats", "0"], "--repeats"),
@@ -221,10 +225,10 @@ def test_error_messages_name_flags_the_command_has(tmp_path):
         run, prefix, _, deprecated, _ = COMMANDS[command]
         code, _, err = _call(run, [*prefix, *argv])
         assert code == 2, (command, argv, err)
-        message = "\n".join(line for line in err.splitlines() if "error:" in line)
-        assert message, (command, argv, err)
+        assert "error:" in err, (command, argv, err)
+        message = err[err.index("error:"):]  # the error and what follows it (instructions)
         own = set(_options(_help(command))) | set(deprecated) | {"--help"}
-        named = _named_flags(message.split("error:", 1)[1])
+        named = _named_flags(message)
         assert named <= own, (command, argv, message, named - own)
         assert expected is None or expected in named, (command, argv, message)
 

@@ -1,6 +1,6 @@
 """What a built real dataset was built from, so that another download is never read as it.
 
-A real build (``--config real``) reads the download in ``manual_dir``, and TFDS keys what it
+A real build (``--manual-dir``) reads the download in ``manual_dir``, and TFDS keys what it
 builds by the data directory alone: without more, building webcam_clipart/real from a
 second download B into a data directory already holding it built from A prints "already
 built" and A's counts, and an experiment on B trains and tests on A's records.
