@@ -63,7 +63,10 @@ def _is_tfds_data_dir(path: Path) -> bool:
         return False
     if not any(path.iterdir()) or (path / "downloads").is_dir():
         return True
-    return any((path / name / config).is_dir() for name in DATASET_NAMES for config in CONFIG_NAMES)
+    if any((path / name / config).is_dir() for name in DATASET_NAMES for config in CONFIG_NAMES):
+        return True
+    # Any TFDS dataset (NAME/VERSION or NAME/CONFIG/VERSION with its dataset_info.json).
+    return any(path.glob("*/*/dataset_info.json")) or any(path.glob("*/*/*/dataset_info.json"))
 
 
 _OVERRIDE = re.compile(r"^--?(no)?config\.")

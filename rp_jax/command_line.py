@@ -54,15 +54,6 @@ MANUAL_DIR_HELP = ("the real dataset you downloaded, in its real layout (TFDS's 
                    "giving it selects the real data instead of the synthetic world")
 SIZE_HELP = ("size of the synthetic world: tiny (tests, seconds), small (minutes), full (the "
              "largest, see the README) (default {default})")
-# Released names that changed, for one release: old -> new (README "Flags" lists them).
-RENAMED = {
-    "--tfds-dir": "--data-dir",
-    "--data-dir (of experiments.*: the download)": "--manual-dir",
-    "--config NAME (of rp_jax.datasets: a TFDS builder config)": "--size / --real",
-    "--model (of rp_jax.keypoints: the predictor)": "--predictor",
-    "--epochs (of experiments.demo)": "--config.num_epochs",
-}
-
 
 def deprecation_warning(prog: str, old: str, new: str) -> None:
     """One line on stderr: ``old`` still works this release; say ``new``."""

@@ -126,6 +126,13 @@ def test_cli_data_dir_is_the_tfds_folder_and_old_spellings_warn(tmp_path, capsys
     assert config.data_dir == "" and workdir.name == "webcam_clipart_real"
     err = capsys.readouterr().err
     assert "is deprecated" in err and f"use --manual-dir {download}" in err
+    # A TFDS data directory holding other TFDS datasets is one, not a download.
+    other = tmp_path / "tensorflow_datasets"
+    (other / "mnist" / "3.0.1").mkdir(parents=True)
+    (other / "mnist" / "3.0.1" / "dataset_info.json").write_text("{}")
+    config, _ = cli.parse(["--data-dir", str(other)], "webcam_clipart", webcam_config, "")
+    assert config.data_dir == str(other) and config.data_config == "synthetic"
+    assert capsys.readouterr().err == ""
 
 
 def test_cli_config_file_and_print_config(tmp_path, capsys):
