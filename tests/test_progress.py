@@ -64,3 +64,16 @@ def test_a_local_build_does_not_say_downloading_unknown_size(tmp_path, capsys):
     assert capsys.readouterr().out == ""
     builder._log_download_bytes()  # only that build is quiet
     assert "Downloading and preparing" in capsys.readouterr().out
+
+
+def test_an_unbuilt_dataset_is_not_prepared_without_a_warning(tmp_path, caplog):
+    # TFDS warned "Variant folder ... has no dataset_info.json" at every first build.
+    pytest.importorskip("tensorflow_datasets")
+    import logging
+
+    from rp_jax.datasets import loading
+
+    builder = loading.get_builder("webcam_clipart", config="synthetic_tiny", data_dir=tmp_path)
+    with caplog.at_level(logging.INFO):
+        assert not builder.is_prepared()
+    assert "Variant folder" not in caplog.text

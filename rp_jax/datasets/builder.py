@@ -416,6 +416,11 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
         info.initialize_from_bucket = _no_bucket
         return info
 
+    def is_prepared(self) -> bool:
+        """TFDS's answer, without its "Variant folder ... has no dataset_info.json" warning
+        for a dataset not built yet (every first build and every load check said it)."""
+        return (Path(self.data_path) / "dataset_info.json").exists() and super().is_prepared()
+
     def _download_and_prepare(self, dl_manager, download_config, **kwargs):
         # Beam is used only when asked for (tfds build --beam_pipeline_options=...).
         self._use_beam = bool(download_config.beam_runner or download_config.beam_options)
