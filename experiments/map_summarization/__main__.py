@@ -60,10 +60,11 @@ def main(argv: list[str] | None = None) -> int:
         progress.set_quiet()
     platform.configure_cpu()
     from experiments.map_summarization import experiment
+    from experiments.map_summarization.config import validate
     from rp_jax.sources.layout import LayoutError
 
     try:
-        experiment.methods_of(config)  # a bad recipe name fails here, before any work
+        validate(config, workdir)  # every field, the downloads, slice and dates: before any work
     except ValueError as e:
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2

@@ -74,3 +74,119 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.ransac_iterations = 5000
     m.workers = 0  # rendering processes; 0 = one per core
     return config
+
+
+def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
+    """Refuse a config (or ``workdir``) that cannot run, before the predictor is trained.
+
+    The training fields go through ``experiments.sec4a.config.validate`` (as the RobotCar
+    and, where a recipe needs it, the CMU predictor's configs, with their workdirs
+    ``<workdir>/rp`` and ``<workdir>/rp_cmu_without_slice<N>``); then ``config.map``: the
+    recipes, ranges, the downloads a ``--manual-dir`` run reads, the slice, and every query
+    date, which must be one the slice has. Raises ``rp_jax.train.ConfigError`` (or
+    ``WorkdirMismatchError``) naming the field, its value and what is expected. Without
+    this, an unknown query date or a missing slice surfaced after minutes of training, as a
+    traceback.
+    """
+    import datetime as dt
+    from pathlib import Path
+
+    from experiments.map_summarization import experiment
+    from experiments.map_summarization import train as mapsum_train
+    from experiments.sec4a.config import validate as validate_training
+    from rp_jax import train
+
+    m = config.map
+    workdir = None if workdir is None else Path(workdir)
+    if workdir is not None and workdir.exists() and not workdir.is_dir():
+        raise train.WorkdirMismatchError(f"workdir {workdir} is a file, not a folder; give "
+                                         "--workdir a folder (it is created if absent)")
+
+    def expect(ok: bool, field: str, expected: str) -> None:
+        if not ok:
+            raise train.ConfigError(f"config.map.{field}={m.get(field)!r}: expected {expected}")
+
+    def number(field: str, lo: float, hi: float | None = None, *, integer: bool = False,
+               open_lo: bool = False) -> None:
+        value = m.get(field)
+        kinds = (int,) if integer else (int, float)
+        ok = isinstance(value, kinds) and not isinstance(value, bool) and (
+            value > lo if open_lo else value >= lo) and (hi is None or value <= hi)
+        what = "an integer" if integer else "a number"
+        bound = f"{'>' if open_lo else '>='} {lo:g}" + ("" if hi is None else f" and <= {hi:g}")
+        expect(ok, field, f"{what} {bound}")
+
+    try:
+        methods = experiment.methods_of(config)
+    except ValueError as e:
+        raise train.ConfigError(str(e)) from None
+    expect(len(m.seeds) > 0 and all(isinstance(s, int) and s >= 0 for s in m.seeds), "seeds",
+           "one or more non-negative integers, e.g. (0, 1, 2)")
+    expect(m.synthetic_size in ("tiny", "small", "full"), "synthetic_size",
+           "one of ['tiny', 'small', 'full']")
+    expect(isinstance(m.ratios, (tuple, list)) and len(m.ratios) > 0
+           and all(isinstance(r, (int, float)) and 0 < r < 1 for r in m.ratios), "ratios",
+           "one or more pruned fractions in (0, 1), e.g. (0.5, 0.9)")
+    expect(m.describe_on in ("stored", "undistorted"), "describe_on",
+           "one of ['stored', 'undistorted']")
+    expect(m.up_axis in (-1, 0, 1, 2), "up_axis", "0, 1 or 2 (a world axis), or -1 (unknown)")
+    for field in ("time_bucket_minutes", "max_keypoints", "vlad_words", "num_retrieved",
+                  "ransac_iterations", "cmu_rp_epochs"):
+        number(field, 1, integer=True)
+    number("min_inliers", 4, integer=True)  # a PnP pose needs four points
+    for field in ("workers", "kcover_K", "random_seed"):
+        number(field, 0, integer=True)
+    number("match_ratio", 0, 1, open_lo=True)
+    for field in ("reprojection_error", "associate_px", "oracle_radius_px", "cell_size_m"):
+        number(field, 0, open_lo=True)
+    dates = []
+    for text in m.query_dates:
+        try:
+            dates.append(dt.date.fromisoformat(str(text)))
+        except ValueError:
+            expect(False, "query_dates", f"ISO dates such as ('2011-03-04',); {text!r} is not one")
+
+    real = config.data_config == "real"
+    if real:
+        for field, path in (("robotcar_dir", m.robotcar_dir
+                             or Path(config.manual_dir or ".") / "robotcar"),
+                            ("root", m.root or Path(config.manual_dir or ".") / "cmu_seasons")):
+            if not Path(path).is_dir():
+                raise train.ConfigError(
+                    f"config.map.{field}: {path} is not a folder; --manual-dir DIR expects the "
+                    "real downloads in DIR/robotcar and DIR/cmu_seasons (or set "
+                    "--config.map.robotcar_dir and --config.map.root)")
+    if real or m.root:
+        root = Path(m.root or Path(config.manual_dir) / "cmu_seasons")
+        expect(isinstance(m.slice, int) and (root / f"slice{m.slice}").is_dir(), "slice",
+               f"a slice of {root}; it has "
+               f"{sorted(p.name for p in root.glob('slice*') if p.is_dir()) or 'none'}")
+        if dates:
+            from rp_jax.sources import cmu_seasons
+
+            queries = cmu_seasons.read_queries(root, slices=[m.slice])
+            found = {c.time.date() for c in queries}
+            if queries:  # a slice without queries uses its held-out traversals: checked later
+                unknown = sorted(d.isoformat() for d in set(dates) - found)
+                expect(not unknown, "query_dates",
+                       f"dates of slice{m.slice}'s queries; not there: {unknown}; there: "
+                       f"{sorted(d.isoformat() for d in found)}")
+    else:
+        from rp_jax.sources.synthetic.map_layout import available_query_dates
+
+        for seed in m.seeds:
+            try:
+                found = set(available_query_dates(m.synthetic_size, seed, m.slice))
+            except ValueError as e:  # no such slice in the synthetic world
+                raise train.ConfigError(f"config.map.slice={m.slice!r}: {e}") from None
+            unknown = sorted(d.isoformat() for d in set(dates) - found)
+            expect(not unknown, "query_dates",
+                   f"query dates of the synthetic world (seed {seed}, slice {m.slice}); not "
+                   f"there: {unknown}; there: {sorted(d.isoformat() for d in found)}")
+
+    validate_training(mapsum_train.rp_config(config),
+                      None if workdir is None else workdir / "rp")
+    if any(recipe and recipe[0] == "cmu"
+           for recipe in (experiment.recipe_of(k, config) for k in methods)):
+        validate_training(mapsum_train.cmu_config(config), None if workdir is None
+                          else workdir / f"rp_cmu_without_slice{m.slice}")

@@ -682,10 +682,11 @@ def run(
     config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
 ) -> dict:
     """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds."""
+    from experiments.map_summarization.config import validate
+
+    validate(config, workdir)  # before the predictor is trained: a bad field fails at once
     m = config.map
     methods = methods_of(config)
-    if not m.seeds:
-        raise ValueError("config.map.seeds is empty: give at least one world seed")
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}

@@ -245,6 +245,9 @@ def read_pose_table(path: Path) -> dict[str, np.ndarray]:
                 values = {c: float(row[c]) for c in wanted}
             except (TypeError, ValueError) as err:
                 raise LayoutError(f"{path}:{line_no}: non-numeric pose row") from err
+            bad = [f"{c}={row[c].strip()}" for c in wanted if not np.isfinite(values[c])]
+            if bad:  # float() reads "nan" and "inf": a pose interpolated from them is garbage
+                raise LayoutError(f"{path}:{line_no}: non-finite pose value ({', '.join(bad)})")
             for c in wanted:
                 rows[c].append(values[c])
     table = {c: np.asarray(v, dtype=np.float64) for c, v in rows.items()}

@@ -30,8 +30,9 @@ import pytest
 
 
 def _checksums(root: Path) -> dict[str, str]:
+    """Every file's sha256 and every folder, under ``root``: a new empty folder is a change."""
     return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
+            if p.is_file() else "folder" for p in sorted(root.rglob("*"))}
 
 
 def _webcam_download(root: Path, scenes: dict[str, list[str]], seed: int = 0,
@@ -175,6 +176,18 @@ def _nan_learning_rate(tmp: Path):
     return _train(tmp, learning_rate=float("nan")), []
 
 
+def _nan_inputs(tmp: Path):
+    from rp_jax import train
+    from rp_jax.datasets import input_pipeline as ip
+    from tests.test_train import small_config, task
+
+    src = task(64, 0)
+    bad = ip.ArraySource(dict(src.arrays, xy_normalized=np.full_like(
+        src.arrays["xy_normalized"], np.nan)), ip.MODEL_KEYS)
+    return (lambda: train.train_and_evaluate(small_config(), tmp / "run", bad,
+                                             progress=False)), []
+
+
 def _another_epoch_count(tmp: Path):
     _train(tmp, num_epochs=1)()
     return _train(tmp, num_epochs=2), []
@@ -185,6 +198,119 @@ def _empty_cmu_folder(tmp: Path):
 
     (tmp / "empty").mkdir()
     return (lambda: cmu_seasons.read(tmp / "empty")), [tmp / "empty"]
+
+
+def _exit_status(main: Callable[[list[str]], int], argv: list[str]) -> Callable[[], int]:
+    """``main(argv)``'s exit status, also when it exits through ``SystemExit`` (argparse)."""
+    def run() -> int:
+        try:
+            return main(argv)
+        except SystemExit as e:
+            return e.code if isinstance(e.code, int) else 1
+    return run
+
+
+def _experiment(name: str, *flags: str, workdir: str = "run"):
+    """``python -m experiments.<name> --size tiny ...`` in-process, in ``tmp``: the rows of
+    a config field out of range or a bad workdir. ``inputs`` is the whole of ``tmp``: the
+    command must fail before it builds, trains or creates anything."""
+    def make(tmp: Path):
+        import importlib
+
+        main = importlib.import_module(f"experiments.{name}.__main__").main \
+            if name == "map_summarization" else _sec4a_main(name)
+        argv = ["--size", "tiny", "--workdir", str(tmp / workdir),
+                f"--config.data_dir={tmp / 'tfds'}", *[f.format(tmp=tmp) for f in flags]]
+        return _exit_status(main, argv), [tmp]
+    return make
+
+
+def _sec4a_main(name: str) -> Callable[[list[str]], int]:
+    import importlib
+
+    from experiments import cli
+
+    module = importlib.import_module(f"experiments.{name}.__main__")
+    return lambda argv: cli.main(argv, name, module.get_config, module.__doc__)
+
+
+def _workdir_a_file(tmp: Path):
+    (tmp / "run").write_text("my notes")
+    return _experiment("webcam_clipart")(tmp)
+
+
+def _workdir_of_another_experiment(tmp: Path):
+    from experiments.cmu_seasons.config import get_config
+
+    (tmp / "run").mkdir()
+    (tmp / "run" / "config.json").write_text(json.dumps(get_config("tiny").to_dict(),
+                                                        default=list))
+    return _experiment("webcam_clipart")(tmp)
+
+
+def _bad_image(kind: str):
+    def make(tmp: Path):
+        root = _webcam_download(tmp / "dl", {"a": DAYS, "b": DAYS})
+        path = root / "a" / f"{DAYS[1]}.png"
+        data = path.read_bytes()
+        path.write_bytes({"zero-byte": b"", "corrupt": b"\x89PNG garbage" * 8,
+                          "truncated": data[: len(data) // 2]}[kind])
+        return _datasets_build("webcam_clipart", root, tmp / "tfds"), [root]
+    return make
+
+
+def _webcam_one_level_too_deep(tmp: Path):
+    _webcam_download(tmp / "dl" / "scenes", {"a": DAYS, "b": DAYS})
+    return _datasets_build("webcam_clipart", tmp / "dl", tmp / "tfds"), [tmp / "dl"]
+
+
+def _cmu_zero_quaternion(tmp: Path):
+    from tests.sources.test_cmu_seasons import _layout
+
+    root = tmp / "dl"
+    root.mkdir()
+    entries, _, _ = _layout(root)
+    gt = root / "slice7" / "ground-truth-database-images-slice7.txt"
+    lines = gt.read_text().splitlines()
+    lines[1] = f"{entries[1][0]} 0 0 0 0 1 2 3"
+    gt.write_text("\n".join(lines) + "\n")
+    return _datasets_build("cmu_seasons", root, tmp / "tfds"), [root]
+
+
+def _robotcar_ins(edit: Callable[[list[str]], None]):
+    def make(tmp: Path):
+        from rp_jax.sources import robotcar
+        from tests.sources.test_robotcar import _layout
+
+        root = tmp / "dl"
+        _layout(root)
+        ins = root / "2015-02-13-09-16-26" / "gps" / "ins.csv"
+        lines = ins.read_text().splitlines()
+        edit(lines)
+        ins.write_text("\n".join(lines) + "\n")
+        return (lambda: robotcar.read(root)), [root]
+    return make
+
+
+def _nan_northing(lines: list[str]) -> None:
+    row = lines[2].split(",")
+    row[5] = "nan"
+    lines[2] = ",".join(row)
+
+
+def _renamed_northing(lines: list[str]) -> None:
+    lines[0] = lines[0].replace("northing", "north")
+
+
+def _mismatched_checkpoint(tmp: Path):
+    from rp_jax import predict
+
+    _train(tmp, num_epochs=1)()
+    path = tmp / "run" / "config.json"
+    config = json.loads(path.read_text())
+    config["model"]["encoder_features"] = 16
+    path.write_text(json.dumps(config))
+    return (lambda: predict.load(tmp / "run")), [tmp / "run"]
 
 
 def _call(fn: Callable[[], object]):
@@ -231,9 +357,10 @@ def _cases() -> list[Case]:
         # Item 6: no model of another epoch count, no training on NaN.
         Case("a trained workdir asked for another epoch count", _another_epoch_count,
              train.WorkdirMismatchError, (r"num_epochs=1, asked num_epochs=2", r"--workdir")),
-        Case("a NaN learning rate", _nan_learning_rate, train.NonFiniteLossError,
-             (r"training loss is nan at epoch 1, step 2", r"learning_rate=nan",
-              r"no checkpoint")),
+        Case("a NaN learning rate", _nan_learning_rate, train.ConfigError,
+             (r"config\.learning_rate=nan: expected a finite number > 0",)),
+        Case("NaN inputs", _nan_inputs, train.NonFiniteLossError,
+             (r"training loss is nan at epoch 1, step 1", r"no checkpoint")),
         # Item 7: no input dropped in silence.
         Case("a NaN in a CMU pose line", _cmu_nan_pose, 2,
              (r"ground-truth-database-images-slice7\.txt:2:", r"NaN")),
@@ -243,6 +370,68 @@ def _cases() -> list[Case]:
              (r"num_folds=99", r"only 2 viewpoints \(a, b\)")),
         Case("an empty folder as a CMU download", _empty_cmu_folder, LayoutError,
              (r"no intrinsics\.txt", r"slice\{N\}/database")),
+        # Tracebacks that became one line, exit 2, before any build or training (each was a
+        # traceback after the dataset was built, or a wrong result with exit 0).
+        *[Case(f"--config.{flag}", _experiment("webcam_clipart", f"--config.{flag}"), 2,
+               (rf"config\.{re.escape(shown)}: expected {expected}",))
+          for flag, shown, expected in (
+              ("batch_size=0", "batch_size=0", "an integer >= 1"),
+              ("time_encoding=bogus", "time_encoding='bogus'", r"one of \['raw', 'cyclic'\]"),
+              ("num_epochs=0", "num_epochs=0", "an integer >= 1"),
+              ("validation_fraction=1.5", "validation_fraction=1.5", r"a number in \[0, 1\)"),
+              ("validation_fraction=-0.1", "validation_fraction=-0.1", r"a number in \[0, 1\)"),
+              ("learning_rate=-1", "learning_rate=-1.0", "a finite number > 0"),
+              ("knn_k=0", "knn_k=0", "an integer >= 1"),
+              ("schedule=cmu_seasons", "schedule='cmu_seasons'", "'webcam_clipart'"),
+              ("model.dtype=float16", "model.dtype='float16'", "one of"),
+              ("model.encoder_features=0", "model.encoder_features=0", "an integer >= 1"),
+              ("augment.contrast=2", "augment.contrast=2.0", r"a number in \[0, 1\)"),
+              ("num_devices=-1", "num_devices=-1", "an integer >= 0"),
+              ("eval_every_epochs=0", "eval_every_epochs=0", "an integer >= 1"),
+              ("seed=-1", "seed=-1", "an integer >= 0"),
+          )],
+        Case("a CMU run with a bad field", _experiment("cmu_seasons", "--config.grad_clip=0"),
+             2, (r"config\.grad_clip=0\.0: expected a finite number > 0",)),
+        Case("a workdir that is a file", _workdir_a_file, 2,
+             (r"run is a file, not a folder", r"--workdir")),
+        Case("a workdir of another experiment", _workdir_of_another_experiment, 2,
+             (r"dataset: 'cmu_seasons' there, 'webcam_clipart' asked", r"new --workdir")),
+        Case("map summarization on an empty --manual-dir",
+             _experiment("map_summarization", "--manual-dir={tmp}"), 2,
+             (r"config\.map\.robotcar_dir: .*robotcar is not a folder",
+              r"DIR/robotcar and DIR/cmu_seasons")),
+        Case("map summarization on an unknown query date",
+             _experiment("map_summarization", "--config.map.query_dates=('2099-01-01',)"), 2,
+             (r"config\.map\.query_dates", r"not there: \['2099-01-01'\]", r"2010-09-01")),
+        Case("map summarization on a query date that is no date",
+             _experiment("map_summarization", "--config.map.query_dates=('March 4',)"), 2,
+             (r"ISO dates such as", r"'March 4' is not one")),
+        Case("map summarization on a missing slice",
+             _experiment("map_summarization", "--config.map.slice=99"), 2,
+             (r"config\.map\.slice=99", r"no slice99")),
+        Case("map summarization on a map root without the slice",
+             _experiment("map_summarization", "--config.map.root={tmp}"), 2,
+             (r"config\.map\.slice=8: expected a slice of .*; it has none",)),
+        Case("map summarization pruning 150 %",
+             _experiment("map_summarization", "--config.map.ratios=(1.5,)"), 2,
+             (r"config\.map\.ratios=\(1\.5,\)", r"\(0, 1\)")),
+        # Bad data: an unreadable image is skipped and named (a correct result, exit 0); a
+        # bad pose line or layout is an error naming the file and line.
+        *[Case(f"a {kind} image", _bad_image(kind), 0,
+               (rf"unreadable image .*a/{DAYS[1]}\.png", r"skipped"))
+          for kind in ("zero-byte", "corrupt", "truncated")],
+        Case("a webcam download one folder too deep", _webcam_one_level_too_deep, 2,
+             (r"dl is not a Webcam Clip Art layout: no scene folder with time-named images",
+              r"Expected <root>/<scene>/YYYYMMDD_HHMMSS\.jpg")),
+        Case("a zero quaternion in a CMU pose line", _cmu_zero_quaternion, 2,
+             (r"ground-truth-database-images-slice7\.txt:2: a quaternion of norm 0",)),
+        Case("a NaN in a RobotCar INS row", _robotcar_ins(_nan_northing), LayoutError,
+             (r"gps/ins\.csv:3: non-finite pose value \(northing=nan\)",)),
+        Case("a RobotCar INS file with a wrong header", _robotcar_ins(_renamed_northing),
+             LayoutError, (r"gps/ins\.csv: header lacks \['northing'\]",)),
+        Case("a checkpoint that does not match its config.json", _mismatched_checkpoint,
+             ValueError, (r"checkpoint \d+ in .*run/checkpoints does not match the config",
+                          r"encoder_features': 16")),
     ]
 
 
@@ -250,13 +439,14 @@ CASES = _cases()
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
-def test_bad_input(case: Case, tmp_path, capsys):
+def test_bad_input(case: Case, tmp_path, capsys, caplog):
     run, inputs = case.make(tmp_path)
     before = {str(p): _checksums(p) for p in inputs}
     capsys.readouterr()
+    caplog.clear()
     if isinstance(case.expect, int):
         assert run() == case.expect
-        message = capsys.readouterr().err
+        message = capsys.readouterr().err + caplog.text  # a read summary is a warning
     else:
         with pytest.raises(case.expect) as err:
             run()
@@ -264,3 +454,19 @@ def test_bad_input(case: Case, tmp_path, capsys):
     for pattern in case.names:
         assert re.search(pattern, message), f"{case.name}: {pattern!r} not in:\n{message}"
     assert {str(p): _checksums(p) for p in inputs} == before, f"{case.name} changed its inputs"
+
+
+@pytest.mark.parametrize("size", ["tiny", "small", "full"])
+def test_every_default_config_is_valid(size, tmp_path):
+    """The validation refuses no config an experiment ships (with a fresh workdir)."""
+    from experiments.cmu_seasons.config import get_config as cmu
+    from experiments.map_summarization.config import get_config as mapsum
+    from experiments.map_summarization.config import validate as validate_mapsum
+    from experiments.sec4a.config import validate
+    from experiments.webcam_clipart.config import get_config as webcam
+
+    for get_config in (webcam, cmu):
+        validate(get_config(size), tmp_path / "run")
+    config = mapsum(size)
+    config.map.candidates = ("rp_cmu",)  # a recipe with the CMU predictor: its config too
+    validate_mapsum(config, tmp_path / "run")

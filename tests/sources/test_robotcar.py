@@ -291,3 +291,18 @@ def test_mono_extrinsics_as_the_sdk_projects(tmp_path, camera):
         assert forward[1] < -0.5
     else:
         assert forward[0] < -0.5
+
+
+@pytest.mark.parametrize("value", ["nan", "inf"])
+def test_a_non_finite_pose_row_names_the_file_and_line(tmp_path, value):
+    # Issue 14: float() reads "nan", and the image got a NaN pose without a word.
+    _layout(tmp_path)
+    ins = tmp_path / "2015-02-13-09-16-26" / "gps" / "ins.csv"
+    lines = ins.read_text().splitlines()
+    row = lines[2].split(",")
+    row[5] = value  # northing
+    lines[2] = ",".join(row)
+    ins.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LayoutError, match=rf"gps/ins\.csv:3: non-finite pose value "
+                                          rf"\(northing={value}\)"):
+        robotcar.read(tmp_path)
