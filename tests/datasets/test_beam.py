@@ -1,8 +1,8 @@
 """Labelling on Apache Beam (DirectRunner, 2 worker processes) gives the records of a local build.
 
 apache-beam pins protobuf and pyarrow below the project's, so it lives in its own
-environment: ``make test-beam`` makes ``.venv-beam`` (``pip install -e ".[test,beam]"``) and
-runs this file there (``.ci/run`` calls it after ``make test``). In an environment without
+environment: ``make test-beam`` makes ``.venv-beam`` (the beam extra, layered on ``.venv``)
+and runs this file there (``.ci/run`` calls it after ``make test``). In an environment without
 Beam the tests skip, unless ``RP_JAX_REQUIRE_BEAM=1`` (set by ``make test-beam``) makes the
 missing package an error.
 
