@@ -23,6 +23,35 @@ best ``REFINE_CANDIDATES`` candidates per row are re-scored with an exact float3
 before choosing, which makes the result agree with OpenCV except for distance differences
 below float32 rounding.
 
+Faster, same result: a bfloat16 product that only *chooses* candidates. Where the CPU (or an
+accelerator) multiplies bfloat16 faster than float32 (AMX, avx512_bf16: 2-4x here), and every
+descriptor value is exactly a bfloat16 (integers up to 256 in magnitude: SIFT's 0..255,
+Hamming's 0/1 bits), ``method="auto"`` takes this path (``_match_bf16``):
+
+1. One jitted JAX computation per block of target images forms approximate squared distances
+   ``s~`` as ONE bf16 product of augmented vectors ``[-2a, |a|^2, 1] . [b, 1, |b|^2]`` (the
+   squared norms split into three bfloat16 pieces, so every input is exact) accumulated in
+   float32 (``preferred_element_type``), for both directions of every pair.
+2. For each row, the approximate three smallest: candidates ``c1, c2`` and the third value
+   ``v3`` (host NumPy in cache-sized tiles on CPU, ``lax.top_k`` on an accelerator).
+3. The candidates are re-scored *exactly* in float32 (``|a - b|^2`` of integer-valued
+   vectors: every partial sum is an integer below 2**24, so exact in any order), giving
+   ``s1 <= s2`` with ties broken by index.
+4. Certificate. Every other point j has ``s~_j >= v3``. With inputs exact in bfloat16 (so
+   every product is exact in float32) and a float32 accumulation in any order, the error is
+   at most gamma_{D+6} times the sum of the terms' magnitudes, 2|a.b| + |a|^2 + |b|^2 <=
+   (|a| + |b|)^2: ``|s~_j - s_j| <= E = (D + 10) u (|a| + max_j |b_j|)^2`` (u = 2**-24). So
+   ``s_j >= L = v3 - E`` for every non-candidate; if ``L > s2`` (or ``L >= s2`` and
+   ``s1 < s2``) the true nearest and second nearest are the candidates, with OpenCV's
+   lowest-index tie rule. Rows without the certificate (exact ties between the second and
+   third neighbour, near-ties within E) are recomputed exactly like the float32 path.
+   A one-time check that the backend's bfloat16 product of integers is exact (it must be:
+   exact products, float32 sums below 2**24) guards against a backend that accumulates in
+   a narrower type; if it fails, the float32 path is used.
+
+Results are identical to the float32 path's (``tests/groundtruth/test_matching.py`` checks
+both, on real SIFT descriptors and on adversarial ties and near-ties).
+
 Distances returned are Euclidean (not squared) in float32, like OpenCV's ``DMatch.distance``;
 for Hamming, the number of differing bits (the squared distance of the bit vectors). A target
 image with fewer than two interest points yields no match: the ratio test is undefined there
@@ -33,6 +62,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -50,6 +80,13 @@ REFINE_CANDIDATES = 4
 _EXACT_LIMIT = float(2**24)
 # Squared distance of a padding row (never a neighbour; far below float32's max).
 _PAD_DISTANCE = np.float32(1e30)
+# float32's unit roundoff (the error bound of the bfloat16 candidate path, see above).
+_U32 = 2.0**-24
+# Rows per tile of the host reductions (a tile of distances stays in the CPU's L2 cache).
+_TILE_ROWS = 256
+METHODS = ("auto", "bf16", "float32")
+# Rows the last bf16 call re-computed exactly because their certificate failed (diagnostic).
+last_recomputed_rows = 0
 
 
 @dataclasses.dataclass
@@ -109,6 +146,8 @@ def match_all_pairs(
     block_bytes: int = 64 << 20,
     threads: int = 2,
     progress: bool = False,
+    method: str = "auto",
+    reduce: str = "auto",
 ) -> PairwiseMatches:
     """Nearest neighbour + ratio test of every interest point against every other image.
 
@@ -122,6 +161,13 @@ def match_all_pairs(
       block_bytes: size of one distance block (trades memory for fewer Python steps).
       threads: Python threads working on distance blocks concurrently (BLAS adds its own).
       progress: show a tqdm bar over distance blocks.
+      method: ``"float32"`` (exact float32 product), ``"bf16"`` (bfloat16 candidates, exact
+        re-check: see the module docstring; descriptors must be exact in bfloat16 and
+        integer-valued) or ``"auto"`` (bf16 where the descriptors allow it and the backend's
+        bfloat16 product passes its check, else float32). All give the same result.
+      reduce: where the bf16 path takes each row's three smallest: ``"host"`` (NumPy),
+        ``"device"`` (``lax.top_k`` inside the jitted computation) or ``"auto"`` (device
+        on an accelerator, host on a CPU backend).
 
     Returns:
       ``PairwiseMatches`` for all ordered pairs (a, b), a != b.
@@ -138,6 +184,21 @@ def match_all_pairs(
     if norm not in ("l2", "hamming"):
         raise ValueError(f"unknown descriptor norm {norm!r} (expected 'l2' or 'hamming')")
     to_distance = np.sqrt if norm == "l2" else (lambda s: s)
+    if method not in METHODS:
+        raise ValueError(f"unknown matching method {method!r} (expected one of {METHODS})")
+    if reduce not in ("auto", "host", "device"):
+        raise ValueError(f"unknown reduce {reduce!r} (expected 'auto', 'host' or 'device')")
+    if method != "float32" and n_img >= 2 and n_max >= 2:
+        eligible = exact and _is_bf16_exact(descs)
+        if method == "bf16" and not eligible:
+            raise ValueError(
+                "method='bf16' needs integer-valued descriptors that bfloat16 holds exactly "
+                "(|value| <= 256); use method='auto' or 'float32'"
+            )
+        if eligible and (method == "bf16" or _bf16_backend_is_exact()):
+            return _match_bf16(
+                descs, counts, dim, ratio, to_distance, block_bytes, threads, progress, reduce
+            )
 
     nn = [np.full((c, n_img), -1, np.int32) for c in counts]
     d1 = [np.full((c, n_img), np.inf, np.float32) for c in counts]
@@ -193,13 +254,256 @@ def match_all_pairs(
                 bar.update(1)
     bar.close()
 
-    ratio_ok = []
-    for i in range(n_img):
+    return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
+
+
+def _is_bf16_exact(descs: Sequence[np.ndarray]) -> bool:
+    """Every value is exactly a bfloat16 (so the bf16 product's inputs are not rounded)."""
+    import ml_dtypes
+
+    return all(
+        d.size == 0 or np.array_equal(d.astype(ml_dtypes.bfloat16).astype(np.float32), d)
+        for d in descs
+    )
+
+
+@functools.cache
+def _bf16_backend_is_exact() -> bool:
+    """The default JAX backend's bfloat16 x bfloat16 -> float32 product of integers is exact.
+
+    Exact products and float32 sums below 2**24 make it so on any correct backend; a backend
+    that accumulated in bfloat16 would fail here (and the float32 path is taken instead).
+    """
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 256, (64, 128)).astype(np.float32)
+    b = rng.integers(0, 256, (96, 128)).astype(np.float32)
+    got = np.asarray(_bf16_dot()(a, b))
+    return bool(np.array_equal(got.astype(np.float64), a.astype(np.float64) @ b.T))
+
+
+@functools.cache
+def _bf16_dot():
+    import jax
+    import jax.numpy as jnp
+
+    def dot(a, b):
+        a, b = a.astype(jnp.bfloat16), b.astype(jnp.bfloat16)
+        return jax.lax.dot_general(
+            a, b, (((1,), (1,)), ((), ())), preferred_element_type=jnp.float32
+        )
+
+    return jax.jit(dot)
+
+
+@functools.cache
+def _bf16_block_kernel(block: int, on_device: bool):
+    """jitted (lhs, rhs, a, b0): squared distances of image a vs images b0..b0+block, both ways.
+
+    ``lhs``/``rhs``: bf16 [n, n_max, D + 6], the augmented forms (``_augment``) whose product
+    is the squared distance. Returns forward [n_max, block * n_max] (rows: points of a) and
+    backward [block * n_max, n_max] (rows: points of each target), or with ``on_device``
+    their three smallest per row, (c1, c2, v3) each. Two products rather than one and a
+    transpose: XLA's transpose of the block costs several times the bf16 product.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    dims = (((1,), (1,)), ((), ()))
+
+    def kernel(lhs, rhs, a, b0):
+        q_l = jax.lax.dynamic_index_in_dim(lhs, a, keepdims=False)  # [n_max, D']
+        q_r = jax.lax.dynamic_index_in_dim(rhs, a, keepdims=False)
+        n_max = q_l.shape[0]
+        t_l = jax.lax.dynamic_slice_in_dim(lhs, b0, block).reshape(block * n_max, -1)
+        t_r = jax.lax.dynamic_slice_in_dim(rhs, b0, block).reshape(block * n_max, -1)
+        fwd = jax.lax.dot_general(q_l, t_r, dims, preferred_element_type=jnp.float32)
+        bwd = jax.lax.dot_general(t_l, q_r, dims, preferred_element_type=jnp.float32)
+        if not on_device:
+            return fwd, bwd
+
+        def top3(x):
+            v, i = jax.lax.top_k(-x, 3)
+            return i[:, 0], i[:, 1], -v[:, 2]
+
+        return top3(fwd.reshape(n_max * block, n_max)), top3(bwd)
+
+    return jax.jit(kernel)
+
+
+def _split_bf16(x: np.ndarray) -> np.ndarray:
+    """Three bfloat16 pieces [..., 3] summing exactly to ``x`` (integers below 2**24)."""
+    import ml_dtypes
+
+    out = np.empty((*x.shape, 3), ml_dtypes.bfloat16)
+    rest = x.astype(np.float64)
+    for k in range(3):
+        out[..., k] = rest.astype(ml_dtypes.bfloat16)
+        rest = rest - out[..., k].astype(np.float64)
+    if np.any(rest != 0):
+        raise AssertionError("squared norms must be integers below 2**24")
+    return out
+
+
+def _augment(descs, counts, n_rows: int, n_max: int, dim: int):
+    """bf16 [n_rows, n_max, D + 6] forms whose product is the squared distance, exactly:
+
+    lhs ``[-2x, n1, n2, n3, 1, 1, 1]`` . rhs ``[y, 1, 1, 1, m1, m2, m3]`` = |x|^2 + |y|^2 - 2 x.y
+    with |x|^2 = n1 + n2 + n3 split into bf16 pieces (every value exact in bf16). Padding
+    points get |y|^2 = 1e30 on the rhs side, so they are never among the nearest.
+    """
+    import ml_dtypes
+
+    lhs = np.zeros((n_rows, n_max, dim + 6), ml_dtypes.bfloat16)
+    rhs = np.zeros((n_rows, n_max, dim + 6), ml_dtypes.bfloat16)
+    rhs[:, :, dim + 3] = _PAD_DISTANCE
+    for i, d in enumerate(descs):
+        c = int(counts[i])
+        if not c:
+            continue
+        pieces = _split_bf16(np.einsum("ij,ij->i", d, d, dtype=np.float64))
+        lhs[i, :c, :dim] = -2.0 * d
+        lhs[i, :c, dim : dim + 3] = pieces
+        lhs[i, :c, dim + 3 :] = 1.0
+        rhs[i, :c, :dim] = d
+        rhs[i, :c, dim : dim + 3] = 1.0
+        rhs[i, :c, dim + 3 :] = pieces
+    return lhs, rhs
+
+
+def _top3_host(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(c1, c2, v3) along the last axis of a 2-D array, in cache-sized tiles of rows (copies:
+    ``x`` may be read-only)."""
+    n = x.shape[0]
+    c1 = np.empty(n, np.int64)
+    c2 = np.empty(n, np.int64)
+    v3 = np.empty(n, np.float32)
+    for s in range(0, n, _TILE_ROWS):
+        t = np.array(x[s : s + _TILE_ROWS])
+        rows = np.arange(len(t))
+        i1 = t.argmin(1)
+        t[rows, i1] = np.inf
+        i2 = t.argmin(1)
+        t[rows, i2] = np.inf
+        v3[s : s + len(t)] = t.min(1)
+        c1[s : s + len(t)], c2[s : s + len(t)] = i1, i2
+    return c1, c2, v3
+
+
+def _exact_sq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Squared distances [len(x), len(y)] as the float32 path computes them (exact for
+    integer-valued descriptors: every term and partial sum an integer below 2**24)."""
+    sx = np.einsum("ij,ij->i", x, x, dtype=np.float32)
+    sy = np.einsum("ij,ij->i", y, y, dtype=np.float32)
+    return (sx[:, None] + sy[None, :]) - np.float32(2.0) * (x @ y.T)
+
+
+def _certified_top2(x, y, sx, sy, norm_x, norm_y_max, c1, c2, v3, dim):
+    """Exact nearest, first and second squared distance of each row of ``x`` among ``y``.
+
+    ``sx, sy``: exact float32 squared norms; ``norm_x``: float64 norms of ``x``,
+    ``norm_y_max``: the largest norm in ``y``. ``c1, c2``: the approximate two nearest
+    (indices into ``y``), ``v3``: the approximate third smallest squared distance. The
+    candidates are re-scored exactly; rows whose certificate fails (module docstring) are
+    recomputed over all of ``y``.
+    """
+    cand = np.stack([c1, c2], 1)
+    dots = np.einsum("ik,ijk->ij", x, y[cand], dtype=np.float32)
+    ex = (sx[:, None] + sy[cand]) - np.float32(2.0) * dots  # exact integers
+    swap = (ex[:, 1] < ex[:, 0]) | ((ex[:, 1] == ex[:, 0]) & (cand[:, 1] < cand[:, 0]))
+    cand[swap] = cand[swap, ::-1]
+    ex[swap] = ex[swap, ::-1]
+    bound = (dim + 10) * _U32 * (norm_x + norm_y_max) ** 2 * 1.001  # |approx - exact|
+    low = v3.astype(np.float64) - bound  # no other point of y is nearer than this
+    s1, s2 = ex[:, 0].astype(np.float64), ex[:, 1].astype(np.float64)
+    ok = (low > s2) | ((low >= s2) & (s1 < s2))
+    idx, d1, d2 = cand[:, 0], ex[:, 0], ex[:, 1]
+    redo = np.flatnonzero(~ok)
+    for s in range(0, len(redo), _TILE_ROWS):
+        rows = redo[s : s + _TILE_ROWS]
+        i, v1, v2 = _top2_last_axis(_exact_sq(x[rows], y))
+        idx[rows], d1[rows], d2[rows] = i, v1, v2
+    return idx, d1, d2, len(redo)
+
+
+def _match_bf16(
+    descs, counts, dim, ratio, to_distance, block_bytes, threads, progress, reduce
+) -> PairwiseMatches:
+    """``match_all_pairs`` through bfloat16 candidates and an exact re-check (see above)."""
+    import jax
+
+    from rp_jax.progress import bar as tqdm  # the one progress helper
+
+    n_img = len(descs)
+    n_max = max(3, int(counts.max()))  # top-3 needs three columns
+    on_device = reduce == "device" or (reduce == "auto" and jax.default_backend() != "cpu")
+    block = max(1, min(n_img - 1, int(block_bytes // (n_max * n_max * 4))))
+    if not on_device:  # small blocks: outputs stay in cache, little waste at a row's end
+        block = min(block, 4)
+    # `block` all-padding images after the last, so that every slice has one shape.
+    lhs, rhs = _augment(descs, counts, n_img + block, n_max, dim)
+    device = jax.devices()[0]  # an accelerator when JAX has one
+    lhs_d, rhs_d = jax.device_put(lhs, device), jax.device_put(rhs, device)
+    kernel = _bf16_block_kernel(block, on_device)
+    sq = [np.einsum("ij,ij->i", d, d, dtype=np.float32) for d in descs]
+    norms = [np.sqrt(np.einsum("ij,ij->i", d, d, dtype=np.float64)) for d in descs]
+    norm_max = [float(n.max()) if len(n) else 0.0 for n in norms]
+
+    nn = [np.full((c, n_img), -1, np.int32) for c in counts]
+    d1 = [np.full((c, n_img), np.inf, np.float32) for c in counts]
+    d2 = [np.full((c, n_img), np.inf, np.float32) for c in counts]
+    redone = [0]
+
+    def store(r, c, cands):
+        idx, s1, s2, n_redo = _certified_top2(
+            descs[r], descs[c], sq[r], sq[c], norms[r], norm_max[c], *cands, dim
+        )
+        nn[r][:, c] = idx
+        d1[r][:, c] = to_distance(s1)
+        d2[r][:, c] = to_distance(s2)
+        redone[0] += n_redo
+
+    def run_block(task: tuple[int, int]) -> None:
+        a, b0 = task
+        fwd, bwd = kernel(lhs_d, rhs_d, a, b0)
+        if on_device:
+            fwd3 = [np.asarray(x).reshape(n_max, block) for x in fwd]
+            bwd3 = [np.asarray(x).reshape(block, n_max) for x in bwd]
+        else:
+            f = np.asarray(fwd).reshape(n_max, block, n_max)
+            w = np.asarray(bwd).reshape(block, n_max, n_max)
+        ca = int(counts[a])
+        for k in range(min(block, n_img - b0)):
+            b = b0 + k
+            cb = int(counts[b])
+            if ca and cb >= 2:
+                store(a, b, [x[:ca, k] for x in fwd3] if on_device else _top3_host(f[:ca, k]))
+            if cb and ca >= 2:
+                store(b, a, [x[k, :cb] for x in bwd3] if on_device else _top3_host(w[k, :cb]))
+
+    tasks = [(a, b0) for a in range(n_img) for b0 in range(a + 1, n_img, block)]
+    bar = tqdm(total=len(tasks), desc="matching", disable=not progress, leave=False)
+    if threads <= 1:
+        for task in tasks:
+            run_block(task)
+            bar.update(1)
+    else:
+        with cf.ThreadPoolExecutor(max_workers=threads) as pool:
+            for _ in pool.map(run_block, tasks):
+                bar.update(1)
+    bar.close()
+    global last_recomputed_rows
+    last_recomputed_rows = redone[0]
+    return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
+
+
+def _ratio_ok(nn, d1, d2, ratio) -> list[np.ndarray]:
+    out = []
+    for i in range(len(nn)):
         with np.errstate(invalid="ignore"):
             ok = d1[i].astype(np.float64) < ratio * d2[i].astype(np.float64)
         ok &= nn[i] >= 0
-        ratio_ok.append(ok)
-    return PairwiseMatches(nn, d1, d2, ratio_ok)
+        out.append(ok)
+    return out
 
 
 def _top2_last_axis(dist: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -84,3 +84,113 @@ def test_cv2_reference_helper_matches_bruteforce_numpy():
     np.testing.assert_allclose(d1, nearest, rtol=1e-5)  # the Euclidean distance, not its square
     np.testing.assert_array_equal(ok, nearest < 0.8 * second)
     assert 0 < ok.sum() < len(ok)  # the ratio test passes some points and rejects others
+
+
+# --- The bfloat16 candidate path (module docstring): identical to the float32 path. ---------
+
+
+def _assert_identical(m, ref):
+    for field in ("nn", "d1", "d2", "ratio_ok"):
+        for i, (x, y) in enumerate(zip(getattr(m, field), getattr(ref, field))):
+            np.testing.assert_array_equal(x, y, err_msg=f"{field} of image {i}")
+
+
+@pytest.fixture(scope="module")
+def sift_viewpoint():
+    """Real SIFT descriptors (integer-valued float32) of a small synthetic viewpoint."""
+    img = textured_image(7)
+    ims = [img, shifted(img, 3.3, -2.1, gain=0.8, noise=4.0, seed=1), shifted(img, -5, 4, 1.2)]
+    ims.append(shifted(img, 1.5, 6.0, gain=0.9, noise=6.0, seed=2))
+    raw = [detect_and_describe(im, detector="sift", max_keypoints=400).descriptor for im in ims]
+    assert all(len(r) > 100 for r in raw)
+    return [prepare_descriptors(r, "l2") for r in raw]
+
+
+@pytest.mark.parametrize("reduce", ["host", "device"])
+def test_bf16_path_identical_on_real_sift(sift_viewpoint, reduce):
+    ref = match_all_pairs(sift_viewpoint, method="float32")
+    m = match_all_pairs(sift_viewpoint, method="bf16", reduce=reduce, block_bytes=1 << 20)
+    _assert_identical(m, ref)
+    assert sum(int(r.sum()) for r in m.ratio_ok) > 100  # not vacuous: many matches pass
+
+
+def _near_tie_descriptors(seed: int) -> list[np.ndarray]:
+    """Queries whose 2nd and 3rd (and 1st and 2nd) neighbours tie exactly or differ by 1-2
+    in squared distance, with values up to 255 and norms (~1,300) above SIFT's 512, so that
+    the certificate's bound E (~ 30) exceeds those gaps."""
+    rng = np.random.default_rng(seed)
+    dim = 128
+    base = rng.integers(1, 140, (12, dim)).astype(np.float32)
+    base[:, :8] = 254
+    targets = []
+    for q in base:
+        for s in (4, 5, 5, 6, 6, 6, 7, 9):  # squared offsets: ties and near-ties
+            t = q.copy()
+            idx = rng.choice(dim, s, replace=False)
+            t[idx] += rng.choice([-1.0, 1.0], s)
+            targets.append(t)
+    targets = np.asarray(targets)
+    rng.shuffle(targets)
+    return [base, targets, targets[::-1].copy(), np.concatenate([base, base])]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_bf16_path_identical_on_adversarial_near_ties(seed):
+    from rp_jax.groundtruth import matching
+
+    descs = _near_tie_descriptors(seed)
+    ref = match_all_pairs(descs, method="float32")
+    for reduce in ("host", "device"):
+        m = match_all_pairs(descs, method="bf16", reduce=reduce, threads=1)
+        _assert_identical(m, ref)
+        assert matching.last_recomputed_rows > 0  # the exact fallback was exercised
+    # And against OpenCV itself, pair by pair.
+    for a, b in ((0, 1), (1, 0), (0, 3), (3, 2)):
+        nn, d1, ok = match_pair_reference(descs[a], descs[b])
+        np.testing.assert_array_equal(m.nn[a][:, b], nn)
+        np.testing.assert_array_equal(m.ratio_ok[a][:, b], ok)
+
+
+@pytest.mark.parametrize("which", ["near_ties", "sift"])
+def test_bf16_certificate_survives_a_worse_backend(monkeypatch, sift_viewpoint, which):
+    """Approximate distances perturbed by up to the certified error bound E (as a backend
+    with a different float32 summation order could): the result must not change."""
+    import jax
+    import jax.numpy as jnp
+
+    from rp_jax.groundtruth import matching
+
+    descs = _near_tie_descriptors(2) if which == "near_ties" else sift_viewpoint
+    norms = np.concatenate([np.linalg.norm(d, axis=1) for d in descs])
+    amp = 0.99 * (128 + 10) * 2.0**-24 * (2 * norms.min()) ** 2  # <= every row's bound
+    assert amp > 1  # large enough to reorder integer distances that differ by 1
+    real = matching._bf16_block_kernel.__wrapped__
+
+    def noisy(block, on_device):
+        inner = real(block, on_device=False)
+
+        def kernel(lhs, rhs, a, b0):
+            fwd, bwd = inner(lhs, rhs, a, b0)
+            key = jax.random.fold_in(jax.random.key(0), a * 100_003 + b0)
+            k1, k2 = jax.random.split(key)
+            fwd = fwd + amp * jax.random.uniform(k1, fwd.shape, jnp.float32, -1.0, 1.0)
+            bwd = bwd + amp * jax.random.uniform(k2, bwd.shape, jnp.float32, -1.0, 1.0)
+            return fwd, bwd
+
+        return kernel
+
+    monkeypatch.setattr(matching, "_bf16_block_kernel", noisy)
+    ref = match_all_pairs(descs, method="float32")
+    _assert_identical(match_all_pairs(descs, method="bf16", reduce="host"), ref)
+
+
+def test_bf16_path_refuses_descriptors_bfloat16_cannot_hold():
+    rng = np.random.default_rng(0)
+    floats = [rng.random((10, 8), dtype=np.float32) for _ in range(2)]
+    with pytest.raises(ValueError, match="bfloat16"):
+        match_all_pairs(floats, method="bf16")
+    big = [rng.integers(0, 1000, (10, 8)).astype(np.float32) + 257 for _ in range(2)]
+    with pytest.raises(ValueError, match="bfloat16"):
+        match_all_pairs(big, method="bf16")
+    # "auto" takes the float32 path for them, and it still matches OpenCV.
+    _assert_equal_to_reference(floats, "l2")
