@@ -439,7 +439,7 @@ def train_and_evaluate(
     Returns:
       The final TrainState (replicated over the mesh).
     """
-    from tqdm.auto import tqdm
+    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     validate_config(config)
     workdir = Path(workdir).absolute()
