@@ -56,6 +56,7 @@ __all__ = [
     "ConfigError",
     "validate_config",
     "check_workdir",
+    "check_devices",
     "MODEL_FIELDS",
     "DATA_FIELDS",
 ]
@@ -161,6 +162,22 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     if config.get("dataset") == "learnable_task":
         positive_int("num_train_points")
         positive_int("num_val_points")
+
+
+def check_devices(config: ml_collections.ConfigDict) -> Mesh:
+    """The data mesh of ``config.num_devices``, or ``ConfigError`` if there are fewer devices
+    or they do not divide both batch sizes. Starts JAX's backend: drivers call it after
+    ``platform.configure_cpu``, before building anything."""
+    try:
+        mesh = distributed.make_mesh(config.num_devices)  # all processes' devices
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
+    n_dev = mesh.devices.size
+    for field in ("batch_size", "eval_batch_size"):
+        _expect(config[field] % n_dev == 0, field, config[field],
+                f"a multiple of the {n_dev} devices the batches are split over "
+                "(or set config.num_devices)")
+    return mesh
 
 
 def check_workdir(workdir: str | os.PathLike, config: ml_collections.ConfigDict) -> None:
@@ -454,10 +471,7 @@ def train_and_evaluate(
         raise ValueError(f"labels have shape {label_shape[1:]} but schedule {schedule.name!r} "
                          f"has T={T}")
 
-    mesh = distributed.make_mesh(config.num_devices)  # all processes' devices
-    n_dev = mesh.devices.size
-    if config.batch_size % n_dev or config.eval_batch_size % n_dev:
-        raise ValueError(f"batch sizes must be divisible by the {n_dev} devices")
+    mesh = check_devices(config)
     steps_per_epoch = input_pipeline.num_train_steps(len(train_source), config.batch_size)
     if steps_per_epoch == 0:
         raise ValueError(

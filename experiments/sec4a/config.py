@@ -54,6 +54,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
             raise train.ConfigError(f"config.{field}={config.get(field)!r}: expected {expected}")
 
     train.validate_config(config)
+    train.check_devices(config)  # batch_size=33 on 2 devices failed after the build
     expect(config.dataset in DATASET_NAMES, "dataset", f"one of {list(DATASET_NAMES)}")
     expect(config.data_config in CONFIG_NAMES, "data_config", f"one of {list(CONFIG_NAMES)}")
     # The records are labelled at the dataset's own timestamps: another schedule has another T.
