@@ -137,7 +137,12 @@ def _build(args) -> int:
     if args.beam_pipeline_options is not None:
         from rp_jax.datasets.builder import beam_pipeline_options
 
-        beam_options = beam_pipeline_options(args.beam_pipeline_options)
+        try:
+            beam_options = beam_pipeline_options(args.beam_pipeline_options)
+        except ImportError as err:
+            raise _UsageError(f"--beam-pipeline-options needs apache-beam ({err.msg}): install "
+                              "the beam extra in an environment of its own (README, Scaling "
+                              "out)") from None
     start = time.perf_counter()
     # A real dataset already built there must have been built from this --manual-dir.
     if not provenance.prepare(builder, args.manual_dir, beam_options=beam_options):

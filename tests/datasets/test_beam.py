@@ -14,25 +14,33 @@ locally, and the two are compared record for record.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-if os.environ.get("RP_JAX_REQUIRE_BEAM"):
-    import apache_beam  # noqa: F401
-else:
-    pytest.importorskip("apache_beam", reason="Beam has its own environment: make test-beam")
-
 from rp_jax.datasets import loading
 from rp_jax.datasets.__main__ import main as datasets_main
 from tests.datasets._tiny import TINY, all_records, build_tiny
 
 BEAM_OPTIONS = "runner=DirectRunner,direct_num_workers=2,direct_running_mode=multi_processing"
+HAVE_BEAM = bool(os.environ.get("RP_JAX_REQUIRE_BEAM")) or (
+    importlib.util.find_spec("apache_beam") is not None)
+
+
+@pytest.mark.skipif(HAVE_BEAM, reason="apache-beam is installed here")
+def test_without_beam_the_flag_says_what_to_install(tmp_path, capsys):
+    code = datasets_main(["build", "webcam_clipart", "--size", "tiny", "--data-dir",
+                          str(tmp_path), "--beam-pipeline-options", BEAM_OPTIONS])
+    assert code == 2
+    assert "needs apache-beam" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # stopped before rendering or building anything
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(not HAVE_BEAM, reason="Beam has its own environment: make test-beam")
 @pytest.mark.parametrize("name", ["webcam_clipart", "cmu_seasons"])
 def test_beam_build_equals_the_local_build_record_for_record(name, tmp_path):
     world = tmp_path / "synthetic" / f"{name}_tiny"
