@@ -77,3 +77,17 @@ def test_an_unbuilt_dataset_is_not_prepared_without_a_warning(tmp_path, caplog):
     with caplog.at_level(logging.INFO):
         assert not builder.is_prepared()
     assert "Variant folder" not in caplog.text
+
+
+def test_every_progress_bar_goes_through_the_one_helper():
+    # A module importing tqdm itself draws carriage-return bars into logs and ignores --quiet.
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    direct = [f"{path.relative_to(root)}:{n}"
+              for base in ("rp_jax", "experiments")
+              for path in sorted((root / base).rglob("*.py")) if path.name != "progress.py"
+              for n, line in enumerate(path.read_text().splitlines(), 1)
+              if re.match(r"\s*(from tqdm\b|import tqdm\b)", line)]
+    assert not direct, f"use `from rp_jax.progress import bar` instead of tqdm in {direct}"
