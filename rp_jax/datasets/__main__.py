@@ -256,6 +256,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args.config = _builder_config(f"{parser.prog} {args.command}", args)
+        if args.data_dir is not None and args.data_dir.exists() and not args.data_dir.is_dir():
+            raise _UsageError(f"--data-dir {args.data_dir} is a file; expected the TFDS data "
+                              "directory (a folder, created if absent)")
         return _build(args) if args.command == "build" else _curves(args)
     except (_UsageError, NotBuiltError, LayoutError, OutputFolderError) as err:
         print(f"{parser.prog} {args.command}: error: {err}", file=sys.stderr)

@@ -234,6 +234,14 @@ def _sec4a_main(name: str) -> Callable[[list[str]], int]:
     return lambda argv: cli.main(argv, name, module.get_config, module.__doc__)
 
 
+def _data_dir_a_file(tmp: Path):
+    from rp_jax.datasets import __main__ as datasets_cli
+
+    (tmp / "tfds").write_text("not a folder")
+    return _exit_status(datasets_cli.main, ["build", "webcam_clipart", "--size", "tiny",
+                                            "--data-dir", str(tmp / "tfds")]), [tmp]
+
+
 def _workdir_a_file(tmp: Path):
     (tmp / "run").write_text("my notes")
     return _experiment("webcam_clipart")(tmp)
@@ -396,6 +404,8 @@ def _cases() -> list[Case]:
         Case("more devices than there are", _experiment("webcam_clipart",
                                                         "--config.num_devices=99"), 2,
              (r"config\.num_devices=99 but only 2 local devices",)),
+        Case("a --data-dir that is a file", _data_dir_a_file, 2,
+             (r"--data-dir .*tfds is a file; expected the TFDS data directory",)),
         Case("a workdir that is a file", _workdir_a_file, 2,
              (r"run is a file, not a folder", r"--workdir")),
         Case("a workdir of another experiment", _workdir_of_another_experiment, 2,
