@@ -42,7 +42,7 @@ import json
 import logging
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 
 import jax
@@ -51,18 +51,23 @@ import numpy as np
 
 from experiments import provenance
 from experiments.map_summarization import report
+from experiments.map_summarization.pooling import (
+    MAIN_THRESHOLD,
+    ORACLES,
+    REFERENCE,
+    THRESHOLD_KEYS,
+    THRESHOLDS,
+    pool,
+    success,
+)
+from experiments.map_summarization.queries import bucket, load_queries
 from experiments.map_summarization.train import train_cmu_predictor, train_predictor
 from experiments.sec4a import experiment
 from rp_jax import files, plots
-from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize import (
     LocalizationMap,
-    QueryImage,
     build_vlad_index,
     localize,
-    pose_error,
-    rootsift,
-    vlad,
     write_submission,
 )
 from rp_jax.mapsum import (
@@ -80,14 +85,10 @@ from rp_jax.mapsum import (
 from rp_jax.mapsum.observations import describe_observations, point_categories, query_scores
 from rp_jax.mapsum.oracles import agnostic_counts, redetection_counts, with_track_tiebreak
 from rp_jax.mapsum.statistics import (
-    bootstrap_interval,
     image_coverage,
     inlier_auc,
-    mcnemar_exact,
-    paired_counts,
 )
 from rp_jax.progress import bar as tqdm  # the one progress helper
-from rp_jax.sources import cmu_seasons
 
 __all__ = [
     "METHOD_LABELS",
@@ -103,9 +104,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-ORACLES = ("oracle_agnostic", "oracle_date")
 BASELINES = ("kcover", "random", "most_observed")
-REFERENCE = "kcover"
 # RP recipes: (which predictor, which rule). ``rp_paper`` is the paper's protocol exactly:
 # the RobotCar RP and the most repeatable points of each part at the query time. The
 # others go beyond it: ``kcover`` = K-cover whose coverage weighs each point by its
@@ -153,88 +152,7 @@ def recipe_of(method: str, config) -> tuple[str, str] | None:
 
 
 MIN_RP_WEIGHT = 1e-3  # K-cover weights must be positive
-THRESHOLDS = ((0.25, 2.0), (0.5, 5.0), (5.0, 10.0))
-THRESHOLD_KEYS = ("0.25m_2deg", "0.5m_5deg", "5m_10deg")
-MAIN_THRESHOLD = "5m_10deg"
 SEED_FILE = "seed.json"
-
-
-# ----------------------------------------------------------------------------- queries
-
-
-def held_out_traversals(root: Path, slice_id: int, reference: set[str]) -> list:
-    """A training slice's posed database images outside its reference model, as queries.
-
-    Settings are chosen on training slices, never on the test slice: there the traversals
-    other than the reference one stand in for the queries (they have ground-truth poses).
-    """
-    caps = cmu_seasons.read(root, slices=[slice_id], include_query=False, min_group_size=1)
-    return sorted((c for c in caps if c.image_path.name not in reference), key=lambda c: c.time)
-
-
-def load_queries(
-    root: Path,
-    slice_id: int,
-    dates: Sequence[dt.date] | None,
-    max_keypoints: int,
-    vocabulary: np.ndarray,
-    progress: bool,
-    reference: set[str] = frozenset(),
-) -> list[dict]:
-    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size.
-
-    A slice without query images (a synthetic training slice) gives its held-out
-    traversals instead (``held_out_traversals``).
-    """
-    caps = cmu_seasons.read_queries(root, slices=[slice_id])
-    if not caps:
-        caps = held_out_traversals(root, slice_id, set(reference))
-    found = sorted({c.time.date() for c in caps})
-    if dates:
-        caps = [c for c in caps if c.time.date() in set(dates)]
-    if not caps:
-        raise ValueError(
-            f"{root}/slice{slice_id}/query: no query on "
-            f"{[d.isoformat() for d in dates or []] or 'any date'}; "
-            f"query dates there: {[d.isoformat() for d in found]}"
-        )
-    out = []
-    for c in tqdm(caps, desc="queries", leave=False, disable=not progress):
-        img = cmu_seasons.load_image(c)
-        if img is None:
-            raise FileNotFoundError(f"{c.image_path}: query image unreadable")
-        f = detect_and_describe(img, max_keypoints=max_keypoints)
-        cam = cmu_seasons.undistorted_camera(c)
-        out.append(
-            {
-                "query": QueryImage(
-                    c.image_path.name,
-                    f.xy,
-                    f.descriptor,
-                    vlad(rootsift(f.descriptor), vocabulary),
-                    cam.K,
-                ),
-                "pose": None if c.R is None else (np.asarray(c.R), np.asarray(c.t)),
-                "time": c.time,
-                "date": c.time.date(),
-                "size": (int(cam.width), int(cam.height)),
-            }
-        )
-    return out
-
-
-def bucket(when: dt.datetime, minutes: int) -> dt.datetime:
-    """``when`` rounded down to ``minutes`` (queries in one bucket share a summary)."""
-    m = when.hour * 60 + when.minute
-    m -= m % max(1, minutes)
-    return when.replace(hour=m // 60, minute=m % 60, second=0, microsecond=0)
-
-
-def _success(pose, est) -> list[bool]:
-    if pose is None or est is None:
-        return [False] * len(THRESHOLDS)
-    e_pos, e_rot = pose_error(pose[0], pose[1], est[0], est[1])
-    return [bool(e_pos <= d and e_rot <= r) for d, r in THRESHOLDS]
 
 
 # ----------------------------------------------------------------------------- one world
@@ -370,7 +288,7 @@ def evaluate_world(
     full_lmap = LocalizationMap(mp, point_desc, index)
     full_results = [localize(q["query"], full_lmap, **loc_kwargs) for q in queries]
     full_outcomes = [
-        _success(q["pose"], (r.pose.R, r.pose.t) if r.success else None)
+        success(q["pose"], (r.pose.R, r.pose.t) if r.success else None)
         for q, r in zip(queries, full_results)
     ]
     inliers_by_date = {d: np.zeros(mp.num_points, np.int64) for d in query_dates}
@@ -486,7 +404,7 @@ def evaluate_world(
                     r = localize(queries[i]["query"], lmap, **loc_kwargs)
                     e = (r.pose.R, r.pose.t) if r.success else None
                     est[queries[i]["query"].name] = e
-                    res[i] = _success(queries[i]["pose"], e)
+                    res[i] = success(queries[i]["pose"], e)
                 if method == "rp" and abs(ratio - 0.5) < 1e-9 and b == next(iter(buckets)):
                     write_summary_model(rec, mp, keep, out_dir / "summaries" / f"rp_{key}")
             outcomes[method][key] = res
@@ -568,111 +486,6 @@ def evaluate_world(
     }
     experiment.write_json(done, result)
     return result
-
-
-# ----------------------------------------------------------------------------- pooling
-
-
-def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int = 2000) -> dict:
-    """Accuracy, intervals, paired tests and AUCs pooled over seeds (posed queries only)."""
-    methods = list(per_seed[0]["outcomes"])
-    if any(list(s["outcomes"]) != methods for s in per_seed):
-        raise ValueError("seeds were evaluated with different methods; re-run them")
-    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
-    n = int(posed.sum())
-    if n == 0:
-        raise ValueError("no query has a ground-truth pose: nothing to score")
-
-    def stacked(method: str, ratio: str) -> np.ndarray:
-        a = np.concatenate(
-            [
-                np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
-                for s in per_seed
-            ]
-        )
-        return a[posed]
-
-    accuracy, interval, paired = {}, {}, {}
-    for method in methods:
-        accuracy[method], interval[method], paired[method] = {}, {}, {}
-        for ratio in ratios:
-            a = stacked(method, ratio)
-            ref = stacked(REFERENCE, ratio)
-            accuracy[method][ratio], interval[method][ratio], paired[method][ratio] = {}, {}, {}
-            for j, th in enumerate(THRESHOLD_KEYS):
-                accuracy[method][ratio][th] = round(100.0 * float(a[:, j].mean()), 2)
-                lo, hi = bootstrap_interval(a[:, j], resamples=resamples, seed=0)
-                interval[method][ratio][th] = [round(lo, 2), round(hi, 2)]
-                b, c = paired_counts(a[:, j], ref[:, j])
-                paired[method][ratio][th] = {
-                    "only_method": b,
-                    "only_kcover": c,
-                    "p": mcnemar_exact(b, c),
-                }
-    # Does time matter in this world? The date oracle paired with the time-agnostic one.
-    oracle_gap = {}
-    if set(ORACLES) <= set(methods):
-        for ratio in ratios:
-            a, b = stacked("oracle_date", ratio), stacked("oracle_agnostic", ratio)
-            oracle_gap[ratio] = {}
-            for j, th in enumerate(THRESHOLD_KEYS):
-                only_date, only_agnostic = paired_counts(a[:, j], b[:, j])
-                oracle_gap[ratio][th] = {
-                    "only_date": only_date,
-                    "only_agnostic": only_agnostic,
-                    "p": mcnemar_exact(only_date, only_agnostic),
-                }
-    full = np.concatenate(
-        [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
-    )[posed]
-    full_acc = {
-        th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)
-    }
-    auc = {}
-    auc_per_date: dict[str, dict[str, float | None]] = {}
-    for method in methods:
-        vals = [s["auc"][method]["all"] for s in per_seed if s["auc"][method]["all"] is not None]
-        auc[method] = round(float(np.mean(vals)), 4) if vals else None
-        dates = sorted({d for s in per_seed for d in s["auc"][method] if d != "all"})
-        auc_per_date[method] = {}
-        for d in dates:
-            v = [s["auc"][method].get(d) for s in per_seed]
-            v = [x for x in v if x is not None]
-            auc_per_date[method][d] = round(float(np.mean(v)), 4) if v else None
-    coverage = {
-        method: {
-            ratio: {
-                "min": int(min(s["coverage"][method][ratio][0] for s in per_seed)),
-                "median": float(np.median([s["coverage"][method][ratio][1] for s in per_seed])),
-            }
-            for ratio in ratios
-        }
-        for method in methods
-    }
-    # Per date: accuracy at the main threshold, so a reader sees where methods differ.
-    dates = np.concatenate([np.asarray(s["queries"]["dates"]) for s in per_seed])[posed]
-    per_date = {}
-    j = THRESHOLD_KEYS.index(MAIN_THRESHOLD)
-    for ratio in ratios:
-        per_date[ratio] = {}
-        for method in methods:
-            a = stacked(method, ratio)[:, j]
-            per_date[ratio][method] = {
-                d: round(100.0 * float(a[dates == d].mean()), 1) for d in sorted(set(dates))
-            }
-    return {
-        "queries": n,
-        "queries_without_pose": int((~posed).sum()),
-        "accuracy": accuracy,
-        "interval": interval,
-        "paired": paired,
-        "oracle_date_vs_agnostic": oracle_gap,
-        "full_map_accuracy": full_acc,
-        "inlier_auc": auc,
-        "inlier_auc_per_date": auc_per_date,
-        "image_coverage": coverage,
-        "accuracy_per_date": per_date,
-    }
 
 
 # ----------------------------------------------------------------------------- run

@@ -1,0 +1,141 @@
+"""Scoring the localization outcomes of map summarization (Sec. V-B, Fig. 11).
+
+A query is localized at a threshold when its estimated pose is within that distance and
+angle of the ground truth (the three thresholds of the visual-localization benchmark).
+``pool`` gathers every seed's outcomes: accuracy per method, ratio and threshold with
+bootstrap intervals, paired counts and McNemar's exact test against ``REFERENCE``
+(K-cover), the date oracle against the time-agnostic one, and the inlier AUCs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from rp_jax.localize import pose_error
+from rp_jax.mapsum.statistics import (
+    bootstrap_interval,
+    mcnemar_exact,
+    paired_counts,
+)
+
+__all__ = ["MAIN_THRESHOLD", "ORACLES", "REFERENCE", "THRESHOLDS", "THRESHOLD_KEYS", "pool",
+           "success"]
+
+# (metres, degrees) of the benchmark's three accuracy thresholds, and their keys.
+THRESHOLDS = ((0.25, 2.0), (0.5, 5.0), (5.0, 10.0))
+THRESHOLD_KEYS = ("0.25m_2deg", "0.5m_5deg", "5m_10deg")
+MAIN_THRESHOLD = "5m_10deg"
+ORACLES = ("oracle_agnostic", "oracle_date")
+REFERENCE = "kcover"  # every method is paired against K-cover, the paper's baseline
+
+
+def success(pose, est) -> list[bool]:
+    """Whether an estimated pose is within each of ``THRESHOLDS`` of the ground truth."""
+    if pose is None or est is None:
+        return [False] * len(THRESHOLDS)
+    e_pos, e_rot = pose_error(pose[0], pose[1], est[0], est[1])
+    return [bool(e_pos <= d and e_rot <= r) for d, r in THRESHOLDS]
+
+
+def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int = 2000) -> dict:
+    """Accuracy, intervals, paired tests and AUCs pooled over seeds (posed queries only)."""
+    methods = list(per_seed[0]["outcomes"])
+    if any(list(s["outcomes"]) != methods for s in per_seed):
+        raise ValueError("seeds were evaluated with different methods; re-run them")
+    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
+    n = int(posed.sum())
+    if n == 0:
+        raise ValueError("no query has a ground-truth pose: nothing to score")
+
+    def stacked(method: str, ratio: str) -> np.ndarray:
+        a = np.concatenate(
+            [
+                np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
+                for s in per_seed
+            ]
+        )
+        return a[posed]
+
+    accuracy, interval, paired = {}, {}, {}
+    for method in methods:
+        accuracy[method], interval[method], paired[method] = {}, {}, {}
+        for ratio in ratios:
+            a = stacked(method, ratio)
+            ref = stacked(REFERENCE, ratio)
+            accuracy[method][ratio], interval[method][ratio], paired[method][ratio] = {}, {}, {}
+            for j, th in enumerate(THRESHOLD_KEYS):
+                accuracy[method][ratio][th] = round(100.0 * float(a[:, j].mean()), 2)
+                lo, hi = bootstrap_interval(a[:, j], resamples=resamples, seed=0)
+                interval[method][ratio][th] = [round(lo, 2), round(hi, 2)]
+                b, c = paired_counts(a[:, j], ref[:, j])
+                paired[method][ratio][th] = {
+                    "only_method": b,
+                    "only_kcover": c,
+                    "p": mcnemar_exact(b, c),
+                }
+    # Does time matter in this world? The date oracle paired with the time-agnostic one.
+    oracle_gap = {}
+    if set(ORACLES) <= set(methods):
+        for ratio in ratios:
+            a, b = stacked("oracle_date", ratio), stacked("oracle_agnostic", ratio)
+            oracle_gap[ratio] = {}
+            for j, th in enumerate(THRESHOLD_KEYS):
+                only_date, only_agnostic = paired_counts(a[:, j], b[:, j])
+                oracle_gap[ratio][th] = {
+                    "only_date": only_date,
+                    "only_agnostic": only_agnostic,
+                    "p": mcnemar_exact(only_date, only_agnostic),
+                }
+    full = np.concatenate(
+        [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
+    )[posed]
+    full_acc = {
+        th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)
+    }
+    auc = {}
+    auc_per_date: dict[str, dict[str, float | None]] = {}
+    for method in methods:
+        vals = [s["auc"][method]["all"] for s in per_seed if s["auc"][method]["all"] is not None]
+        auc[method] = round(float(np.mean(vals)), 4) if vals else None
+        dates = sorted({d for s in per_seed for d in s["auc"][method] if d != "all"})
+        auc_per_date[method] = {}
+        for d in dates:
+            v = [s["auc"][method].get(d) for s in per_seed]
+            v = [x for x in v if x is not None]
+            auc_per_date[method][d] = round(float(np.mean(v)), 4) if v else None
+    coverage = {
+        method: {
+            ratio: {
+                "min": int(min(s["coverage"][method][ratio][0] for s in per_seed)),
+                "median": float(np.median([s["coverage"][method][ratio][1] for s in per_seed])),
+            }
+            for ratio in ratios
+        }
+        for method in methods
+    }
+    # Per date: accuracy at the main threshold, so a reader sees where methods differ.
+    dates = np.concatenate([np.asarray(s["queries"]["dates"]) for s in per_seed])[posed]
+    per_date = {}
+    j = THRESHOLD_KEYS.index(MAIN_THRESHOLD)
+    for ratio in ratios:
+        per_date[ratio] = {}
+        for method in methods:
+            a = stacked(method, ratio)[:, j]
+            per_date[ratio][method] = {
+                d: round(100.0 * float(a[dates == d].mean()), 1) for d in sorted(set(dates))
+            }
+    return {
+        "queries": n,
+        "queries_without_pose": int((~posed).sum()),
+        "accuracy": accuracy,
+        "interval": interval,
+        "paired": paired,
+        "oracle_date_vs_agnostic": oracle_gap,
+        "full_map_accuracy": full_acc,
+        "inlier_auc": auc,
+        "inlier_auc_per_date": auc_per_date,
+        "image_coverage": coverage,
+        "accuracy_per_date": per_date,
+    }

@@ -1,0 +1,85 @@
+"""Queries of map summarization: the test slice's query images, or a training slice's
+held-out traversals (Sec. V-B), described for localization (SIFT, RootSIFT VLAD)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from rp_jax.groundtruth.features import detect_and_describe
+from rp_jax.localize import QueryImage, rootsift, vlad
+from rp_jax.progress import bar as tqdm  # the one progress helper
+from rp_jax.sources import cmu_seasons
+
+__all__ = ["bucket", "held_out_traversals", "load_queries"]
+
+
+def held_out_traversals(root: Path, slice_id: int, reference: set[str]) -> list:
+    """A training slice's posed database images outside its reference model, as queries.
+
+    Settings are chosen on training slices, never on the test slice: there the traversals
+    other than the reference one stand in for the queries (they have ground-truth poses).
+    """
+    caps = cmu_seasons.read(root, slices=[slice_id], include_query=False, min_group_size=1)
+    return sorted((c for c in caps if c.image_path.name not in reference), key=lambda c: c.time)
+
+
+def load_queries(
+    root: Path,
+    slice_id: int,
+    dates: Sequence[dt.date] | None,
+    max_keypoints: int,
+    vocabulary: np.ndarray,
+    progress: bool,
+    reference: set[str] = frozenset(),
+) -> list[dict]:
+    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size.
+
+    A slice without query images (a synthetic training slice) gives its held-out
+    traversals instead (``held_out_traversals``).
+    """
+    caps = cmu_seasons.read_queries(root, slices=[slice_id])
+    if not caps:
+        caps = held_out_traversals(root, slice_id, set(reference))
+    found = sorted({c.time.date() for c in caps})
+    if dates:
+        caps = [c for c in caps if c.time.date() in set(dates)]
+    if not caps:
+        raise ValueError(
+            f"{root}/slice{slice_id}/query: no query on "
+            f"{[d.isoformat() for d in dates or []] or 'any date'}; "
+            f"query dates there: {[d.isoformat() for d in found]}"
+        )
+    out = []
+    for c in tqdm(caps, desc="queries", leave=False, disable=not progress):
+        img = cmu_seasons.load_image(c)
+        if img is None:
+            raise FileNotFoundError(f"{c.image_path}: query image unreadable")
+        f = detect_and_describe(img, max_keypoints=max_keypoints)
+        cam = cmu_seasons.undistorted_camera(c)
+        out.append(
+            {
+                "query": QueryImage(
+                    c.image_path.name,
+                    f.xy,
+                    f.descriptor,
+                    vlad(rootsift(f.descriptor), vocabulary),
+                    cam.K,
+                ),
+                "pose": None if c.R is None else (np.asarray(c.R), np.asarray(c.t)),
+                "time": c.time,
+                "date": c.time.date(),
+                "size": (int(cam.width), int(cam.height)),
+            }
+        )
+    return out
+
+
+def bucket(when: dt.datetime, minutes: int) -> dt.datetime:
+    """``when`` rounded down to ``minutes`` (queries in one bucket share a summary)."""
+    m = when.hour * 60 + when.minute
+    m -= m % max(1, minutes)
+    return when.replace(hour=m // 60, minute=m % 60, second=0, microsecond=0)
