@@ -58,6 +58,11 @@ Conventions (the SDK's, ``ori-mrg/robotcar-dataset-sdk`` python/, written once h
   distortion LUT is present, undistorts with it, so they follow ``capture.camera`` (PINHOLE
   fx fy cx cy). Without the LUT the raw (slightly distorted) image is returned and
   ``meta["undistorted"]`` is False.
+
+Why this module is over 600 lines: it is the one reader of one layout, and the SDK's
+conventions above (pose files, extrinsics, camera models, timestamps, viewpoint lists,
+Bayer pixels) only make sense together; each is a small function of its own, tested
+against the SDK's formulas, and nothing else in the package reads RobotCar files.
 """
 
 from __future__ import annotations

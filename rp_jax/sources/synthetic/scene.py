@@ -36,6 +36,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rp_jax import categories
+from rp_jax.sources.synthetic import ground_textures as gt
 from rp_jax.sources.synthetic import object_textures as ot
 from rp_jax.sources.synthetic import textures as tx
 
@@ -469,7 +470,7 @@ def build_scene(
             if name == "road":
                 tc.register(
                     key,
-                    tx.ground_texture,
+                    gt.ground_texture,
                     dict(
                         seed=int(seed * 7919 + i),
                         kind="road",
@@ -489,7 +490,7 @@ def build_scene(
                 )
                 tc.register(
                     key,
-                    tx.ground_texture,
+                    gt.ground_texture,
                     dict(
                         seed=int(seed * 7919 + i * 13 + len(name)),
                         kind=gkind,

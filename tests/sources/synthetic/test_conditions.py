@@ -6,7 +6,7 @@ import itertools
 import numpy as np
 
 from rp_jax.sources.synthetic import conditions as cond
-from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.ground_textures import ground_texture
 
 PITTSBURGH = (40.4406, -79.9959)
 
@@ -55,15 +55,15 @@ def test_snow_is_deterministic_and_conditions_carry_it():
 
 
 def test_snow_patterns_differ_between_snowfalls():
-    a = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
-    b = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734007)
-    c = tx.ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
+    a = ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
+    b = ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734007)
+    c = ground_texture(4, "grass", 10.0, 6.0, season=0, snow=1, snow_pattern=734000)
     np.testing.assert_array_equal(a, c)
     assert np.mean(np.abs(a.astype(int) - b.astype(int)).max(-1) > 30) > 0.2
     # A deeper pack covers more: sidewalks are white at level 3, not at level 1.
     white = [
         np.mean(
-            tx.ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1)
+            ground_texture(4, "sidewalk", 10.0, 3.0, snow=s, snow_pattern=1)[..., :3].min(-1)
             > 200
         )
         for s in (1, 3)

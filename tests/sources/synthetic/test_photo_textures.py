@@ -10,6 +10,7 @@ import pytest
 
 from rp_jax.sources.synthetic import photo_textures as pt
 from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.ground_textures import ground_texture
 
 needs_photos = pytest.mark.skipif(not pt.HAVE_SKIMAGE, reason="scikit-image is not installed")
 BRICK, MORTAR = np.float32([0.55, 0.25, 0.18]), np.float32([0.72, 0.70, 0.66])
@@ -233,7 +234,7 @@ def test_facade_windows_signs_and_snow_stay_where_they_were(monkeypatch, shopfro
 def test_side_walls_grass_and_roofs_keep_their_layout(monkeypatch):
     side = tx.side_wall_texture(77, 14.0, 12.0, "brick")
     grass = {
-        s: tx.ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05) for s in range(4)
+        s: ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05) for s in range(4)
     }
     roof = tx.roof_texture(9, 14.0, 14.0, snow=2, snow_pattern=3)
     monkeypatch.setattr(pt, "HAVE_SKIMAGE", False)
@@ -242,7 +243,7 @@ def test_side_walls_grass_and_roofs_keep_their_layout(monkeypatch):
     np.testing.assert_array_equal(side[_glass(side), :3], side_d[_glass(side), :3])
     assert np.abs(side[..., :3].astype(int) - side_d[..., :3]).mean() > 2
     for s in range(4):  # snow susceptibility, paths and driveways (aux 90) as before
-        g = tx.ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05)
+        g = ground_texture(31 + s, "grass", 20.0, 8.0, season=s, texel=0.05)
         np.testing.assert_array_equal(grass[s][..., 3], g[..., 3])
         assert np.abs(grass[s][..., :3].astype(int) - g[..., :3]).mean() > 1
     np.testing.assert_array_equal(
@@ -257,7 +258,7 @@ def test_procedural_fallback_without_scikit_image(procedural):
         f, tx.facade_texture(4242, 11.0, 10.0, 3.2, "brick", True, snow=2, snow_pattern=1)
     )
     s = tx.side_wall_texture(77, 14.0, 12.0, "brick")
-    g = tx.ground_texture(31, "grass", 20.0, 8.0, season=1, texel=0.05)
+    g = ground_texture(31, "grass", 20.0, 8.0, season=1, texel=0.05)
     r = tx.roof_texture(9, 14.0, 14.0)
     for t in (f, s, g, r):
         assert (
