@@ -119,7 +119,7 @@ def name_datetime(name: str) -> tuple[dt.datetime, str] | None:
     match = _ROBOTCAR_NAME.match(base)
     if match:
         utc = dt.datetime(1970, 1, 1, tzinfo=dt.UTC) + dt.timedelta(microseconds=int(match[1]))
-        tz = zone(load_spec("robotcar").get("timezone", "Europe/London"))
+        tz = zone(load_spec("robotcar")["timezone"])
         return utc.astimezone(tz), "Oxford RobotCar name"
     when = webcam_clipart.parse_name_time(base)
     if when is not None:

@@ -114,10 +114,11 @@ def parse_image_name(name: str) -> tuple[int, str, int] | None:
     return int(match.group(1)), match.group(2), int(match.group(3))
 
 
-def capture_time(unix_us: int, tz_name: str = "America/New_York") -> dt.datetime:
-    """The local wall-clock time of a UNIX time in microseconds."""
+def capture_time(unix_us: int, tz_name: str | None = None) -> dt.datetime:
+    """The local wall-clock time of a UNIX time in microseconds, in ``tz_name`` (default: the
+    dataset's zone in ``data_specs/cmu_seasons.json``)."""
     utc = dt.datetime(1970, 1, 1, tzinfo=dt.UTC) + dt.timedelta(microseconds=unix_us)
-    return utc.astimezone(zone(tz_name))
+    return utc.astimezone(zone(tz_name or load_spec(SPEC_NAME)["timezone"]))
 
 
 def read_intrinsics(path: Path) -> dict[str, Camera]:
@@ -360,7 +361,7 @@ def read(
     schedule = schedule or preset(SPEC_NAME)
     found = _check_root(root, slices)
     cameras = read_intrinsics(root / "intrinsics.txt")
-    tz_name = load_spec(SPEC_NAME).get("timezone", "America/New_York")
+    tz_name = load_spec(SPEC_NAME)["timezone"]
     counts = ReadCounts(DATASET)
     grouped: list[Capture] = []
     for n, slice_dir in found.items():
@@ -424,7 +425,7 @@ def read_queries(root: Path, *, slices: Sequence[int] | None = None) -> list[Cap
     root = Path(root)
     found = _check_root(root, slices)
     cameras = read_intrinsics(root / "intrinsics.txt")
-    tz_name = load_spec(SPEC_NAME).get("timezone", "America/New_York")
+    tz_name = load_spec(SPEC_NAME)["timezone"]
     counts = ReadCounts(f"{DATASET} queries")
     out: list[Capture] = []
     for n, slice_dir in found.items():

@@ -449,7 +449,7 @@ def read(
     max_yaw_deg = spec.get("viewpoint_yaw_deg", 45.0) if max_yaw_deg is None else max_yaw_deg
     slots = {k: int(v) for k, v in spec.get("traversal_slots", {}).items() if k != "note"}
     slots.update(traversal_slots or {})
-    tz = zone(spec.get("timezone", "Europe/London"))
+    tz = zone(spec["timezone"])
     sensor = _sensor(image_dir)
     camera_name = camera_name or camera_model_name(image_dir)
     pattern = bayer_pattern(image_dir)
