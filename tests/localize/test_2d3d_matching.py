@@ -52,3 +52,71 @@ def test_brute_force_and_kdtree_agree_on_sift_like_descriptors():
     np.testing.assert_array_equal(brute[1], tree[1])
     assert len(brute[0]) > 250
     np.testing.assert_array_equal(brute[1], brute[0])  # query i is a noisy copy of point i
+
+
+# --- method="bf16" (auto above 16 dimensions): bfloat16 candidates, certified, exact. -------
+
+
+def _exact_reference(queries, points, ratio=0.8):
+    """The exact answer in float64: nearest point (lowest index on ties), ratio test kept."""
+    q, p = queries.astype(np.float64), points.astype(np.float64)
+    d = ((q[:, None, :] - p[None, :, :]) ** 2).sum(-1)
+    order = np.argsort(d, axis=1, kind="stable")
+    s = np.take_along_axis(d, order[:, :2], 1)
+    good = s[:, 0] < ratio**2 * s[:, 1]
+    return np.flatnonzero(good), order[good, 0]
+
+
+def _sift_like(seed, n_points=700, n_queries=400):
+    rng = np.random.default_rng(seed)
+    points = rng.gamma(0.5, 20, (n_points, 128)).astype(np.float32)
+    noisy = points[: n_queries // 2] + rng.normal(scale=3.0, size=(n_queries // 2, 128))
+    clutter = rng.gamma(0.5, 20, (n_queries - n_queries // 2, 128))
+    return np.concatenate([noisy, clutter]).astype(np.float32), points
+
+
+def test_bf16_equals_the_exact_answer_on_sift_like_descriptors():
+    queries, points = _sift_like(2)
+    ref = _exact_reference(queries, points)
+    got = match_2d3d(queries, points, mutual_unique=False, method="bf16")
+    np.testing.assert_array_equal(got[0], ref[0])
+    np.testing.assert_array_equal(got[1], ref[1])
+    assert len(ref[0]) > 150  # not vacuous
+    for mutual in (False, True):  # "auto" picks bf16 in 128-D; brute agrees here
+        auto = match_2d3d(queries, points, mutual_unique=mutual)
+        brute = match_2d3d(queries, points, mutual_unique=mutual, method="brute")
+        np.testing.assert_array_equal(auto[0], brute[0])
+        np.testing.assert_array_equal(auto[1], brute[1])
+
+
+def test_bf16_adversarial_ties_and_ratio_boundary():
+    """Exact ties between the two nearest, and second distances within the bfloat16 error of
+    d1 / 0.8: the certificate must send these rows to the exact recomputation."""
+    from rp_jax.localize import matching
+
+    rng = np.random.default_rng(3)
+    dim = 128
+    centre = rng.gamma(0.5, 20, (60, dim))
+    points, queries = [], []
+    for k, c in enumerate(centre):
+        u = rng.normal(size=dim)
+        u /= np.linalg.norm(u)
+        if k % 2 == 0:  # exact tie: q halfway between two points (lowest index must win)
+            points += [c + 4 * u, c - 4 * u]
+            queries.append(c)
+        else:  # d2 = d1 / 0.8 * (1 +- tiny): the ratio test sits on its boundary
+            r1 = 4.0
+            r2 = r1 / 0.8 * (1 + rng.choice([-1, 1]) * 1e-4)
+            v = rng.normal(size=dim)
+            v -= v.dot(u) * u
+            v /= np.linalg.norm(v)
+            points += [c + r1 * u, c + r2 * v]
+            queries.append(c)
+    points = np.asarray(points, np.float32)
+    queries = np.asarray(queries, np.float32)
+    ref = _exact_reference(queries, points)
+    got = match_2d3d(queries, points, mutual_unique=False, method="bf16")
+    np.testing.assert_array_equal(got[0], ref[0])
+    np.testing.assert_array_equal(got[1], ref[1])
+    assert matching.last_recomputed_rows > 0
+    assert 0 < len(ref[0]) < len(queries)
