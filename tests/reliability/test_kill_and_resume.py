@@ -1,6 +1,7 @@
 """SIGKILL at a stage, then the same command again: the result of an uninterrupted run.
 
 The process is killed by itself at a chosen point (deterministic, unlike a timer): while
+rendering the synthetic world (after a few frames were written), while
 labelling (after the first viewpoint is labelled and cached, inside TFDS's partial build
 folder) and while an orbax checkpoint is being written (after the save started, before it
 was finalised). No ``finally`` runs, as with a real kill. The re-run must give records, or
@@ -28,6 +29,38 @@ def _killed(script: str) -> None:
     done = subprocess.run([sys.executable, "-c", textwrap.dedent(script)], cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == -9, f"not killed (exit {done.returncode}):\n{done.stderr[-2000:]}"
+
+
+def _files(root: Path) -> dict[str, str]:
+    import hashlib
+
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.slow
+def test_a_render_killed_midway_resumes_to_the_same_files(tmp_path):
+    from rp_jax.sources.synthetic import __main__ as synthetic_cli
+
+    argv = ["webcam_clipart", "--size", "tiny", "--workers", "1", "--quiet"]
+    _killed(f"""
+        import os, signal
+        from rp_jax.sources.synthetic import __main__ as cli, frame_jobs
+        render, frames = frame_jobs.render_job, []
+        def render_then_die(job):
+            out = render(job)  # this frame is written
+            frames.append(1)
+            if len(frames) == 3:
+                os.kill(os.getpid(), signal.SIGKILL)
+            return out
+        frame_jobs.render_job = render_then_die
+        cli.main({[argv[0], str(tmp_path / "killed"), *argv[1:]]!r})
+    """)
+    assert synthetic_cli.main([argv[0], str(tmp_path / "killed"), *argv[1:]]) == 0  # again
+    assert synthetic_cli.main([argv[0], str(tmp_path / "never_killed"), *argv[1:]]) == 0
+    resumed, reference = _files(tmp_path / "killed"), _files(tmp_path / "never_killed")
+    assert resumed.keys() == reference.keys()
+    assert resumed == reference
 
 
 def _records(tfds_dir: Path) -> dict:
