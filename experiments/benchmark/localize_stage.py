@@ -313,8 +313,9 @@ def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> d
             **summarize_samples(ms["ours"]["total"]),
             "variant": "rp_jax.localize.localize",
             "description": (
-                "GlobalIndex (KD-tree) retrieval, match_2d3d (exact brute force + ratio test, "
-                "one query per point), estimate_pose (cv2.solvePnPRansac AP3P + solvePnPRefineLM)"
+                "GlobalIndex (KD-tree) retrieval, match_2d3d (bfloat16 candidates, certified, "
+                "exact re-check + ratio test, one query per point), estimate_pose "
+                "(cv2.solvePnPRansac AP3P + solvePnPRefineLM)"
             ),
             "steps": {k: summarize_samples(ms["ours"][k]) for k in steps},
         },

@@ -113,13 +113,45 @@ def _match_table(entry: dict[str, Any]) -> list[str]:
         "| side | median | min | max | ratio to peer | what |",
         "|---|---|---|---|---|---|",
     ]
-    for side in ("ours", "peer"):
+    for side in ("ours", "ours_float32", "peer"):
+        if side not in entry:
+            continue
         v = entry[side]
-        ratio = _fmt(entry["ratio"]) if side == "ours" else "1"
+        ratio = {"ours": _fmt(entry["ratio"]), "peer": "1"}.get(side)
+        if ratio is None:  # the float32 path, against the same rounds' peer
+            ratio = _fmt(entry["ratio"] / entry["bf16_vs_float32"])
         lines.append(
             f"| {side}: `{v['variant']}` | {_fmt(v['median'])} | {_fmt(v['min'])} | "
             f"{_fmt(v['max'])} | {ratio} | {v.get('description', '')} |"
         )
+    if "bf16_vs_float32" in entry:
+        lines += [
+            "",
+            f"As shipped vs the float32 path, same rounds: {_fmt(entry['bf16_vs_float32'])}x.",
+        ]
+    scaling = entry.get("scaling")
+    if scaling:
+        lines += [
+            "",
+            (
+                f"Scaling with the images of a viewpoint ({scaling['keypoints_per_image']} "
+                "descriptors each, one fresh process per size and method, one run each; "
+                f"above {scaling['measured_max']} images extrapolated from the largest "
+                "measured size: seconds per image pair, memory per output element):"
+            ),
+            "",
+            "| images | image pairs | seconds, auto (bf16) | seconds, float32 | speed-up | "
+            "PairwiseMatches MB | RSS growth MB (auto) | measured | load avg |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for n, row in scaling["per_num_images"].items():
+            a, f = row["auto"], row["float32"]
+            load = _fmt(a.get("load_average_1min")) if row["measured"] else "-"
+            lines.append(
+                f"| {n} | {a['image_pairs']:.0f} | {_fmt(a['seconds'])} | {_fmt(f['seconds'])} | "
+                f"{_fmt(row['speedup'])} | {a['output_mb']:.0f} | {a['delta_rss_mb']:.0f} | "
+                f"{'yes' if row['measured'] else 'extrapolated'} | {load} |"
+            )
     return lines + [""]
 
 

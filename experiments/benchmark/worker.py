@@ -14,6 +14,13 @@ Ground truth::
 
 labels one synthetic viewpoint and prints its time and peak memory, then exits.
 
+Matching alone (labelling's quadratic stage)::
+
+    python -m experiments.benchmark.worker match NUM_IMAGES SIZE METHOD
+
+matches one synthetic viewpoint with ``match_all_pairs(method=METHOD)`` and prints its time
+and peak memory, then exits.
+
 Map summarization (Sec. V-A)::
 
     python -m experiments.benchmark.worker summarize NUM_POINTS SIZE REPEATS KCOVER
@@ -61,6 +68,17 @@ def _summarize(argv: list[str]) -> int:
 def main(argv: list[str]) -> int:
     if argv[:1] == ["summarize"]:
         return _summarize(argv[1:])
+    if argv[:1] == ["match"] and len(argv) == 4:
+        try:
+            from experiments.benchmark.config import SIZES
+            from experiments.benchmark.match_stage import match_once
+
+            _send(match_once(int(argv[1]), SIZES[argv[2]], argv[3]))
+        except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
+            traceback.print_exc()
+            _send({"error": f"{type(e).__name__}: {e}"})
+            return 1
+        return 0
     if len(argv) != 3:
         sys.stderr.write(__doc__)
         return 2

@@ -329,3 +329,23 @@ def test_summarize_skips_kcover_past_its_budget(monkeypatch):
 
     md = report.markdown({"summarize": {**e, "size": "fake"}})
     assert "not run: projected 20 s" in md
+
+
+def test_match_stage_times_both_paths_and_the_scaling(tmp_path):
+    """The match stage (no PyTorch needed): as shipped (bf16 where the CPU has it) and the
+    float32 path in the same rounds, checked identical first, and the scaling table."""
+    js, md = run_benchmark(["match"], tmp_path, size="tiny", repeats=1, progress=False)
+    e = json.loads(js.read_text())["match"]
+    md = md.read_text()
+    assert e["identical"] is True and e["bf16_vs_float32"] > 0
+    assert len(e["ours_float32"]["samples"]) == len(e["peer"]["samples"]) == 1
+    scaling = e["scaling"]["per_num_images"]
+    assert list(scaling) == [str(n) for n in SIZES["tiny"]["match_scaling_images"]]
+    for n, row in scaling.items():
+        assert row["measured"] == (int(n) <= SIZES["tiny"]["match_scaling_measured_max"])
+        for method in ("auto", "float32"):
+            assert row[method]["seconds"] > 0 and row[method]["image_pairs"] > 0
+        assert row["auto"]["output_mb"] == pytest.approx(row["float32"]["output_mb"])
+    assert scaling["3"]["auto"]["peak_rss_mb"] > 0
+    assert "Scaling with the images of a viewpoint" in md and "extrapolated" in md
+
