@@ -48,6 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.quiet:
         progress.set_quiet()
     platform.configure_cpu()
+    try:  # every field, the devices and the workdir, before the task is made and trained
+        train.validate_config(config)
+        train.check_devices(config)
+        train.check_workdir(args.workdir, config)
+    except (train.ConfigError, train.WorkdirMismatchError) as e:
+        print(f"{parser.prog}: error: {e}", file=sys.stderr)
+        return 2
     schedule = schedule_lib.preset(config.schedule)
     train_rec = learnable_task.make_learnable_task(config.num_train_points, schedule,
                                                    seed=config.seed)

@@ -72,5 +72,8 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
                "the folder of the real download (--manual-dir) with data_config 'real'")
     if config.manual_dir:
         expect(Path(config.manual_dir).is_dir(), "manual_dir", "an existing folder")
+    for field in ("data_dir", "synthetic_root"):  # created if absent
+        expect(not config[field] or not Path(config[field]).exists()
+               or Path(config[field]).is_dir(), field, "a folder (created if absent), not a file")
     if workdir is not None:
         train.check_workdir(workdir, config)

@@ -242,6 +242,19 @@ def _data_dir_a_file(tmp: Path):
                                             "--data-dir", str(tmp / "tfds")]), [tmp]
 
 
+def _experiment_data_dir_a_file(tmp: Path):
+    (tmp / "notes").write_text("not a folder")
+    return _experiment("webcam_clipart", "--config.data_dir={tmp}/notes")(tmp)
+
+
+def _demo(*flags: str):
+    def make(tmp: Path):
+        from experiments import demo
+
+        return _exit_status(demo.main, ["--workdir", str(tmp / "run"), *flags]), [tmp]
+    return make
+
+
 def _workdir_a_file(tmp: Path):
     (tmp / "run").write_text("my notes")
     return _experiment("webcam_clipart")(tmp)
@@ -406,6 +419,10 @@ def _cases() -> list[Case]:
              (r"config\.num_devices=99 but only 2 local devices",)),
         Case("a --data-dir that is a file", _data_dir_a_file, 2,
              (r"--data-dir .*tfds is a file; expected the TFDS data directory",)),
+        Case("a TFDS data_dir that is a file", _experiment_data_dir_a_file, 2,
+             (r"config\.data_dir='.*notes': expected a folder \(created if absent\)",)),
+        Case("the demo with num_epochs=0", _demo("--config.num_epochs=0"), 2,
+             (r"config\.num_epochs=0: expected an integer >= 1",)),
         Case("a workdir that is a file", _workdir_a_file, 2,
              (r"run is a file, not a folder", r"--workdir")),
         Case("a workdir of another experiment", _workdir_of_another_experiment, 2,
