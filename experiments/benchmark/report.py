@@ -127,7 +127,7 @@ def _match_table(entry: dict[str, Any]) -> list[str]:
     if "bf16_vs_float32" in entry:
         lines += [
             "",
-            f"As shipped vs the float32 path, same rounds: {_fmt(entry['bf16_vs_float32'])}x.",
+            f"bf16 path vs float32 path, same rounds: {_fmt(entry['bf16_vs_float32'])}x.",
         ]
     scaling = entry.get("scaling")
     if scaling:
@@ -140,12 +140,12 @@ def _match_table(entry: dict[str, Any]) -> list[str]:
                 "measured size: seconds per image pair, memory per output element):"
             ),
             "",
-            "| images | image pairs | seconds, auto (bf16) | seconds, float32 | speed-up | "
-            "PairwiseMatches MB | RSS growth MB (auto) | measured | load avg |",
+            "| images | image pairs | seconds, bf16 | seconds, float32 | speed-up | "
+            "PairwiseMatches MB | RSS growth MB (bf16) | measured | load avg |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
         for n, row in scaling["per_num_images"].items():
-            a, f = row["auto"], row["float32"]
+            a, f = row["bf16"], row["float32"]
             load = _fmt(a.get("load_average_1min")) if row["measured"] else "-"
             lines.append(
                 f"| {n} | {a['image_pairs']:.0f} | {_fmt(a['seconds'])} | {_fmt(f['seconds'])} | "

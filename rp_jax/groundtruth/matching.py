@@ -26,7 +26,13 @@ below float32 rounding.
 Faster, same result: a bfloat16 product that only *chooses* candidates. Where the CPU (or an
 accelerator) multiplies bfloat16 faster than float32 (AMX, avx512_bf16: 2-4x here), and every
 descriptor value is exactly a bfloat16 (integers up to 256 in magnitude: SIFT's 0..255,
-Hamming's 0/1 bits), ``method="auto"`` takes this path (``_match_bf16``):
+Hamming's 0/1 bits), ``method="bf16"`` takes this path (``_match_bf16``), and
+``method="auto"`` does on an accelerator. On this project's CPU (2 cores with AMX, shared and
+loaded) it was not faster than the float32 path: 0.74x for 8 images x 1,000 SIFT points
+(median of 5 interleaved rounds), 0.86x / 1.18x for one run at 84 / 168 images
+(``experiments/results/benchmark.md``): XLA's bf16 product is only ~1.7x NumPy's float32
+one there, and the path needs two of them (an XLA transpose of the block costs more), the
+three smallest per row and the re-check. So ``"auto"`` keeps float32 on a CPU backend.
 
 1. One jitted JAX computation per block of target images forms approximate squared distances
    ``s~`` as ONE bf16 product of augmented vectors ``[-2a, |a|^2, 1] . [b, 1, |b|^2]`` (the
@@ -163,8 +169,9 @@ def match_all_pairs(
       progress: show a tqdm bar over distance blocks.
       method: ``"float32"`` (exact float32 product), ``"bf16"`` (bfloat16 candidates, exact
         re-check: see the module docstring; descriptors must be exact in bfloat16 and
-        integer-valued) or ``"auto"`` (bf16 where the descriptors allow it and the backend's
-        bfloat16 product passes its check, else float32). All give the same result.
+        integer-valued) or ``"auto"`` (bf16 on an accelerator where the descriptors allow it
+        and the backend's bfloat16 product passes its check, else float32). All give the
+        same result.
       reduce: where the bf16 path takes each row's three smallest: ``"host"`` (NumPy),
         ``"device"`` (``lax.top_k`` inside the jitted computation) or ``"auto"`` (device
         on an accelerator, host on a CPU backend).
@@ -195,7 +202,7 @@ def match_all_pairs(
                 "method='bf16' needs integer-valued descriptors that bfloat16 holds exactly "
                 "(|value| <= 256); use method='auto' or 'float32'"
             )
-        if eligible and (method == "bf16" or _bf16_backend_is_exact()):
+        if eligible and (method == "bf16" or (_on_accelerator() and _bf16_backend_is_exact())):
             return _match_bf16(
                 descs, counts, dim, ratio, to_distance, block_bytes, threads, progress, reduce
             )
@@ -255,6 +262,14 @@ def match_all_pairs(
     bar.close()
 
     return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
+
+
+def _on_accelerator() -> bool:
+    """JAX's default backend is not the CPU (where ``method="auto"`` keeps float32: see the
+    module docstring for the measurement)."""
+    import jax
+
+    return jax.default_backend() != "cpu"
 
 
 def _is_bf16_exact(descs: Sequence[np.ndarray]) -> bool:

@@ -332,8 +332,8 @@ def test_summarize_skips_kcover_past_its_budget(monkeypatch):
 
 
 def test_match_stage_times_both_paths_and_the_scaling(tmp_path):
-    """The match stage (no PyTorch needed): as shipped (bf16 where the CPU has it) and the
-    float32 path in the same rounds, checked identical first, and the scaling table."""
+    """The match stage (no PyTorch needed): the bf16 and float32 paths in the same rounds,
+    checked identical first, and the scaling table."""
     js, md = run_benchmark(["match"], tmp_path, size="tiny", repeats=1, progress=False)
     e = json.loads(js.read_text())["match"]
     md = md.read_text()
@@ -343,9 +343,9 @@ def test_match_stage_times_both_paths_and_the_scaling(tmp_path):
     assert list(scaling) == [str(n) for n in SIZES["tiny"]["match_scaling_images"]]
     for n, row in scaling.items():
         assert row["measured"] == (int(n) <= SIZES["tiny"]["match_scaling_measured_max"])
-        for method in ("auto", "float32"):
+        for method in ("bf16", "float32"):
             assert row[method]["seconds"] > 0 and row[method]["image_pairs"] > 0
-        assert row["auto"]["output_mb"] == pytest.approx(row["float32"]["output_mb"])
-    assert scaling["3"]["auto"]["peak_rss_mb"] > 0
+        assert row["bf16"]["output_mb"] == pytest.approx(row["float32"]["output_mb"])
+    assert scaling["3"]["bf16"]["peak_rss_mb"] > 0
     assert "Scaling with the images of a viewpoint" in md and "extrapolated" in md
 

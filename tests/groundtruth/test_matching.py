@@ -194,3 +194,19 @@ def test_bf16_path_refuses_descriptors_bfloat16_cannot_hold():
         match_all_pairs(big, method="bf16")
     # "auto" takes the float32 path for them, and it still matches OpenCV.
     _assert_equal_to_reference(floats, "l2")
+
+
+def test_auto_takes_bf16_on_an_accelerator_only(monkeypatch, sift_viewpoint):
+    from rp_jax.groundtruth import matching
+
+    def bf16_path(*args, **kwargs):
+        raise RuntimeError("bf16 path taken")
+
+    monkeypatch.setattr(matching, "_match_bf16", bf16_path)
+    monkeypatch.setattr(matching, "_on_accelerator", lambda: False)
+    match_all_pairs(sift_viewpoint[:2])  # CPU: the float32 path (faster here, see docstring)
+    monkeypatch.setattr(matching, "_on_accelerator", lambda: True)
+    with pytest.raises(RuntimeError, match="bf16 path taken"):
+        match_all_pairs(sift_viewpoint[:2])
+    floats = [np.random.default_rng(0).random((9, 8), dtype=np.float32) for _ in range(2)]
+    match_all_pairs(floats)  # not exact in bf16: float32 even on an accelerator
