@@ -177,11 +177,7 @@ def build_parser(name: str, doc: str, *, default_size: str = "full",
     command_line.add_data_dir(parser, default=_default_tfds_dir() + ", the same from any "
                               "working directory")
     command_line.deprecated_alias(parser, "--tfds-dir", "--data-dir", dest="data_dir", type=Path)
-    parser.add_argument("--config", dest="config_file", metavar="FILE[:ARG]", default=None,
-                        help="ml_collections config file whose get_config(ARG) gives the config "
-                        "(default: this experiment's own, with ARG = --size)")
-    parser.add_argument("--print-config", action="store_true",
-                        help="print the resolved config (after every flag) and exit")
+    command_line.add_config_file(parser, default="this experiment's own, with ARG = --size")
     command_line.add_quiet(parser)
     if cross_validation:
         parser.add_argument("--cross-validate", action="store_true",

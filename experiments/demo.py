@@ -24,16 +24,12 @@ from rp_jax.datasets import input_pipeline, learnable_task
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m experiments.demo", description=__doc__.splitlines()[0].strip("`"),
+        prog="python -m experiments.demo", description=__doc__.splitlines()[0].replace("`", ""),
         epilog="--config.FIELD=VALUE  override one field of the config (ml_collections."
         "config_flags), e.g. --config.num_epochs=3; --print-config lists the fields.")
     parser.add_argument("--workdir", default="runs/demo_learnable_task",
                         help="run directory (resumes if present)")
-    parser.add_argument("--config", dest="config_file", metavar="FILE[:ARG]", default=None,
-                        help="ml_collections config file whose get_config(ARG) gives the config "
-                        "(default: rp_jax/configs/default.py)")
-    parser.add_argument("--print-config", action="store_true",
-                        help="print the resolved config (after every flag) and exit")
+    command_line.add_config_file(parser, default="rp_jax/configs/default.py")
     command_line.add_quiet(parser)
     command_line.deprecated_alias(parser, "--epochs", "--config.num_epochs=N", dest="epochs",
                                   type=int)

@@ -74,7 +74,7 @@ def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.ship_models",
-                                description=__doc__.split("\n")[0])
+                                description=__doc__.split("\n")[0].replace("`", ""))
     p.add_argument("workdir", nargs="?", help="the trained workdir of a default run")
     p.add_argument("name", nargs="?", help="the shipped model's name, e.g. robotcar-synthetic")
     p.add_argument("--dataset", help="dataset of the sample: webcam_clipart, cmu_seasons, robotcar")

@@ -32,6 +32,7 @@ __all__ = [
     "MANUAL_DIR_HELP",
     "SIZE_HELP",
     "VOCABULARY",
+    "add_config_file",
     "add_data_dir",
     "add_manual_dir",
     "add_quiet",
@@ -99,6 +100,15 @@ def add_size(parser, default: str, choices=("tiny", "small", "full")) -> None:
     """``--size``: the synthetic world's size."""
     parser.add_argument("--size", choices=choices, default=default,
                         help=SIZE_HELP.format(default=default))
+
+
+def add_config_file(parser, default: str) -> None:
+    """``--config FILE[:ARG]`` (an ml_collections config file) and ``--print-config``."""
+    parser.add_argument("--config", dest="config_file", metavar="FILE[:ARG]", default=None,
+                        help="ml_collections config file whose get_config(ARG) gives the config "
+                        f"(default: {default})")
+    parser.add_argument("--print-config", action="store_true",
+                        help="print the resolved config (after every flag) and exit")
 
 
 def add_quiet(parser) -> None:

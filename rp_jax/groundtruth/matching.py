@@ -233,7 +233,6 @@ def match_all_pairs(
     per_target = n_max * n_max * 4
     block = max(1, int(block_bytes // per_target))
 
-    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     def run_block(task: tuple[int, int, int]) -> None:
         a, b0, b1 = task
@@ -249,17 +248,8 @@ def match_all_pairs(
     tasks = [
         (a, b0, min(n_img, b0 + block)) for a in range(n_img) for b0 in range(a + 1, n_img, block)
     ]
-    bar = tqdm(total=len(tasks), desc="matching", disable=not progress, leave=False)
-    if threads <= 1:
-        for task in tasks:
-            run_block(task)
-            bar.update(1)
-    else:
-        # NumPy releases the GIL in the reductions: threads overlap them with BLAS.
-        with cf.ThreadPoolExecutor(max_workers=threads) as pool:
-            for _ in pool.map(run_block, tasks):
-                bar.update(1)
-    bar.close()
+    # NumPy releases the GIL in the reductions: threads overlap them with BLAS.
+    _run_tasks(run_block, tasks, threads, progress)
 
     return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
 
@@ -446,7 +436,6 @@ def _match_bf16(
     """``match_all_pairs`` through bfloat16 candidates and an exact re-check (see above)."""
     import jax
 
-    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     n_img = len(descs)
     n_max = max(3, int(counts.max()))  # top-3 needs three columns
@@ -496,6 +485,19 @@ def _match_bf16(
                 store(b, a, [x[k, :cb] for x in bwd3] if on_device else _top3_host(w[k, :cb]))
 
     tasks = [(a, b0) for a in range(n_img) for b0 in range(a + 1, n_img, block)]
+    _run_tasks(run_block, tasks, threads, progress)
+    global last_recomputed_rows
+    last_recomputed_rows = redone[0]
+    return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
+
+
+def _run_tasks(run_block, tasks: Sequence, threads: int, progress: bool) -> None:
+    """Run ``run_block`` on every task, on ``threads`` threads, with one progress bar.
+
+    Tasks write disjoint elements of the result, so their order does not matter.
+    """
+    from rp_jax.progress import bar as tqdm  # the one progress helper
+
     bar = tqdm(total=len(tasks), desc="matching", disable=not progress, leave=False)
     if threads <= 1:
         for task in tasks:
@@ -506,9 +508,6 @@ def _match_bf16(
             for _ in pool.map(run_block, tasks):
                 bar.update(1)
     bar.close()
-    global last_recomputed_rows
-    last_recomputed_rows = redone[0]
-    return PairwiseMatches(nn, d1, d2, _ratio_ok(nn, d1, d2, ratio))
 
 
 def _ratio_ok(nn, d1, d2, ratio) -> list[np.ndarray]:
