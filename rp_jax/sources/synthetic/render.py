@@ -652,6 +652,15 @@ def _world_points(Kc_inv: np.ndarray, R: np.ndarray, t: np.ndarray, depth: np.nd
     return (Xc - t.astype(np.float32)) @ R.astype(np.float32), finite  # R^T (X_c - t)
 
 
+def _plane_depth(coef: np.ndarray, q: np.ndarray, u: np.ndarray, v: np.ndarray,
+                 background: int) -> np.ndarray:
+    """Depth at pixels (u, v) seen on quads ``q``: 1/z is affine in the pixel on a plane
+    (row ``coef[q]``); inf where no quad (``q == background``) is seen."""
+    iz = np.take(coef[:, 0], q) * u + np.take(coef[:, 1], q) * v + np.take(coef[:, 2], q)
+    with np.errstate(divide="ignore"):
+        return np.where(q == background, np.inf, 1.0 / np.maximum(iz, 1e-12)).astype(np.float32)
+
+
 def _srgb_to_linear_lut() -> np.ndarray:
     x = np.arange(256) / 255.0
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
@@ -842,13 +851,7 @@ def render(
     coef = np.vstack([gbuf.plane @ Kc_inv, np.zeros((1, 3))]).astype(np.float32)
     uu = np.arange(Wc, dtype=np.float32)[None, :]
     vv = np.arange(Hc, dtype=np.float32)[:, None]
-    iz = (
-        np.take(coef[:, 0], qfull) * uu
-        + np.take(coef[:, 1], qfull) * vv
-        + np.take(coef[:, 2], qfull)
-    )
-    with np.errstate(divide="ignore"):
-        depth = np.where(qfull == N, np.inf, 1.0 / np.maximum(iz, 1e-12)).astype(np.float32)
+    depth = _plane_depth(coef, qfull, uu, vv, N)
     if clouds:
         # Cloud shadows are soft (blurred over ~2 px): trace them on every other pixel.
         Xh, _ = _world_points(Kc_inv, R, t, depth, 2)
@@ -905,13 +908,7 @@ def render(
             cv2.INTER_NEAREST,
             borderMode=cv2.BORDER_REPLICATE,
         ).astype(np.intp)
-        izd = (
-            np.take(coef[:, 0], qd) * mapx
-            + np.take(coef[:, 1], qd) * mapy
-            + np.take(coef[:, 2], qd)
-        )
-        with np.errstate(divide="ignore"):
-            depth = np.where(qd == N, np.inf, 1.0 / np.maximum(izd, 1e-12)).astype(np.float32)
+        depth = _plane_depth(coef, qd, mapx, mapy, N)
         category = np.take(cat_q, qd)
     else:
         category = np.take(cat_q, qfull)
