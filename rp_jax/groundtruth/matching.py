@@ -73,6 +73,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from rp_jax import bf16
+
 __all__ = [
     "PairwiseMatches",
     "match_all_pairs",
@@ -282,22 +284,8 @@ def _bf16_backend_is_exact() -> bool:
     rng = np.random.default_rng(0)
     a = rng.integers(0, 256, (64, 128)).astype(np.float32)
     b = rng.integers(0, 256, (96, 128)).astype(np.float32)
-    got = np.asarray(_bf16_dot()(a, b))
+    got = np.asarray(bf16.product()(a, b))
     return bool(np.array_equal(got.astype(np.float64), a.astype(np.float64) @ b.T))
-
-
-@functools.cache
-def _bf16_dot():
-    import jax
-    import jax.numpy as jnp
-
-    def dot(a, b):
-        a, b = a.astype(jnp.bfloat16), b.astype(jnp.bfloat16)
-        return jax.lax.dot_general(
-            a, b, (((1,), (1,)), ((), ())), preferred_element_type=jnp.float32
-        )
-
-    return jax.jit(dot)
 
 
 @functools.cache
@@ -335,18 +323,12 @@ def _bf16_block_kernel(block: int, on_device: bool):
     return jax.jit(kernel)
 
 
-def _split_bf16(x: np.ndarray) -> np.ndarray:
+def _split_exact(x: np.ndarray) -> np.ndarray:
     """Three bfloat16 pieces [..., 3] summing exactly to ``x`` (integers below 2**24)."""
-    import ml_dtypes
-
-    out = np.empty((*x.shape, 3), ml_dtypes.bfloat16)
-    rest = x.astype(np.float64)
-    for k in range(3):
-        out[..., k] = rest.astype(ml_dtypes.bfloat16)
-        rest = rest - out[..., k].astype(np.float64)
+    pieces, rest = bf16.split3(x)
     if np.any(rest != 0):
         raise AssertionError("squared norms must be integers below 2**24")
-    return out
+    return pieces
 
 
 def _augment(descs, counts, n_rows: int, n_max: int, dim: int):
@@ -365,7 +347,7 @@ def _augment(descs, counts, n_rows: int, n_max: int, dim: int):
         c = int(counts[i])
         if not c:
             continue
-        pieces = _split_bf16(np.einsum("ij,ij->i", d, d, dtype=np.float64))
+        pieces = _split_exact(np.einsum("ij,ij->i", d, d, dtype=np.float64))
         lhs[i, :c, :dim] = -2.0 * d
         lhs[i, :c, dim : dim + 3] = pieces
         lhs[i, :c, dim + 3 :] = 1.0

@@ -26,10 +26,10 @@ test, which the float32 ``"brute"`` reproduces except for distances within its r
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 from scipy.spatial import cKDTree
+
+from rp_jax import bf16
 
 __all__ = ["match_2d3d"]
 
@@ -39,31 +39,6 @@ _UB = 2.0**-8  # bfloat16's unit roundoff
 _PAD_SQ = 1e30  # squared norm of a padding point (never a neighbour)
 _ROW_BUCKET = 512  # query rows per product (padded: one compiled shape per size bucket)
 _COL_BUCKET = 1024  # candidate points are padded to a multiple of this
-
-
-@functools.cache
-def _bf16_product():
-    import jax
-    import jax.numpy as jnp
-
-    def product(lhs, rhs):
-        return jax.lax.dot_general(
-            lhs, rhs, (((1,), (1,)), ((), ())), preferred_element_type=jnp.float32
-        )
-
-    return jax.jit(product)
-
-
-def _split3(x: np.ndarray) -> np.ndarray:
-    """Three bfloat16 pieces [..., 3] whose float64 sum is ``x`` to 2**-24 relative."""
-    import ml_dtypes
-
-    out = np.empty((*x.shape, 3), ml_dtypes.bfloat16)
-    rest = np.asarray(x, np.float64)
-    for k in range(3):
-        out[..., k] = rest.astype(ml_dtypes.bfloat16)
-        rest = rest - out[..., k].astype(np.float64)
-    return out
 
 
 def _exact_rows(q: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,11 +69,11 @@ def _two_nearest_bf16(
     p_sq = (p64 * p64).sum(1)
     rhs = np.zeros((n_cols, dim + 3), ml_dtypes.bfloat16)
     rhs[:npt, :dim] = p
-    rhs[:npt, dim:] = _split3(p_sq)
+    rhs[:npt, dim:] = bf16.split3(p_sq)[0]
     rhs[npt:, dim] = _PAD_SQ
     device = jax.devices()[0]  # an accelerator when JAX has one
     rhs_d = jax.device_put(rhs, device)
-    product = _bf16_product()
+    product = bf16.product()
     q64 = q.astype(np.float64)
     q_sq = (q64 * q64).sum(1)
     q_norm, p_max = np.sqrt(q_sq), float(np.sqrt(p_sq.max()))
