@@ -9,20 +9,24 @@ vectorised nearest-neighbour + ratio-test matching (``matching``), geometric ver
 from rp_jax.groundtruth.config import GroundTruthConfig
 from rp_jax.groundtruth.labels import repeatability_labels
 from rp_jax.groundtruth.viewpoint import (
+    OUTCOME_KEYS,
     RECORD_KEYS,
     TIME_FIELDS,
     attach_patches,
     label_viewpoint,
+    label_viewpoint_outcomes,
     label_viewpoints,
     load_records,
 )
 
 __all__ = [
+    "OUTCOME_KEYS",
     "RECORD_KEYS",
     "TIME_FIELDS",
     "GroundTruthConfig",
     "attach_patches",
     "label_viewpoint",
+    "label_viewpoint_outcomes",
     "label_viewpoints",
     "load_records",
     "repeatability_labels",

@@ -11,6 +11,10 @@ Work is cached so that an interrupted build resumes where it stopped:
 * ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts and a
   fingerprint of the captures, their image files' and category maps' bytes): the records
   of a finished viewpoint; a re-run with the same captures returns it without recomputing.
+* ``<cache_dir>/outcomes/<config tag>/<viewpoint>.npz``: the per-image-pair
+  outcomes the records' labels average (``viewpoint.OUTCOME_KEYS``), compressed (mostly
+  zeros), with the same fingerprint inside; absent for viewpoints labelled before they
+  were cached, which are then matched again when outcomes are asked for.
 
 Neither cache holds the 64x64x3 patches: at 12 KB per interest point they were 95 % of the
 bytes (a full synthetic CMU build cached ~60 GB); ``viewpoint.attach_patches`` cuts them
@@ -37,10 +41,13 @@ from rp_jax.sources.capture import Capture
 __all__ = [
     "fingerprint",
     "load_npz",
+    "outcomes_path",
     "read_features",
     "read_labels",
+    "read_outcomes",
     "write_features",
     "write_labels",
+    "write_outcomes",
 ]
 
 logger = logging.getLogger(__name__)
@@ -58,6 +65,12 @@ def save_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     """``np.savez`` written atomically."""
     with files.replacing(path) as tmp, open(tmp, "wb") as f:
         np.savez(f, **arrays)
+
+
+def save_npz_compressed(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+    """``np.savez_compressed`` written atomically."""
+    with files.replacing(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
 
 
 def load_npz(path: Path) -> dict[str, np.ndarray]:
@@ -216,3 +229,29 @@ def write_labels(path: Path, records: Mapping[str, np.ndarray], meta: Mapping) -
     """Cache a viewpoint's records and their ``.json`` (counts, fingerprint, config)."""
     save_npz(path, records)
     files.write_text(path.with_suffix(".json"), json.dumps(meta, indent=1))
+
+
+def outcomes_path(labels_path_: Path) -> Path:
+    """Where the per-pair outcomes of the viewpoint whose records are at ``labels_path``
+    go: the same names under ``outcomes/`` instead of ``labels/``."""
+    tag_dir = labels_path_.parent
+    return tag_dir.parent.parent / "outcomes" / tag_dir.name / labels_path_.name
+
+
+def read_outcomes(path: Path, fingerprint_: str) -> dict[str, np.ndarray] | None:
+    """The cached outcomes of a viewpoint, or None when there are none of these captures."""
+    if not path.exists():
+        return None
+    try:
+        outcomes = load_npz(path)
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        logger.warning("unreadable outcome cache %s (%s); matching again", path, err)
+        return None
+    if str(outcomes.pop("fingerprint", "")) != fingerprint_:
+        return None
+    return outcomes
+
+
+def write_outcomes(path: Path, outcomes: Mapping[str, np.ndarray], fingerprint_: str) -> None:
+    """Cache a viewpoint's outcomes with the fingerprint ``read_outcomes`` checks."""
+    save_npz_compressed(path, {**outcomes, "fingerprint": np.array(fingerprint_)})

@@ -11,13 +11,32 @@ number of inliers"). Only readable images count in m_{k,j}.
 
 A timestamp with no image at all (sum_k m_{k,j} = 0) has no score: its ``label`` entry is
 0 and its ``label_mask`` entry is False, so it is never mistaken for "never repeated".
+
+Before the average, each point has an *outcome* in every image of its viewpoint
+(``pair_outcomes``): re-detected and matched as a geometric inlier (``OUTCOME_INLIER``),
+not (``OUTCOME_MISS``), or unknown (``OUTCOME_UNKNOWN``: its own image, an unreadable
+image). A conditional predictor learns from these pairs (``rp_jax.conditional``);
+``repeatability_from_outcomes`` averages them back into y^j, the same numbers as
+``repeatability_labels``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["images_per_timestamp", "repeatability_labels"]
+__all__ = [
+    "OUTCOME_INLIER",
+    "OUTCOME_MISS",
+    "OUTCOME_UNKNOWN",
+    "images_per_timestamp",
+    "pair_outcomes",
+    "repeatability_from_outcomes",
+    "repeatability_labels",
+]
+
+OUTCOME_INLIER = 1  # re-detected in the other image and matched as a geometric inlier
+OUTCOME_MISS = 0  # not (no match, failed the ratio test or the geometric check)
+OUTCOME_UNKNOWN = -1  # its own image, or an image that could not be read
 
 
 def images_per_timestamp(slots: np.ndarray, num_timestamps: int) -> np.ndarray:
@@ -67,4 +86,69 @@ def repeatability_labels(
     label = np.zeros(counts.shape, np.float32)
     label[:, has_images] = (counts[:, has_images] / m[has_images]).astype(np.float32)
     mask = np.broadcast_to(has_images, counts.shape).copy()
+    return label, mask
+
+
+def pair_outcomes(
+    inliers: np.ndarray, own_image: int, columns: np.ndarray, num_images: int
+) -> np.ndarray:
+    """Outcome of every interest point of one image in every image of its viewpoint.
+
+    Args:
+      inliers: bool [N, n_readable] as in ``repeatability_labels`` (one column per readable
+        image).
+      own_image: the column of ``inliers`` that is the points' own image.
+      columns: int [n_readable]: the index of each readable image among all ``num_images``
+        images of the viewpoint (the unreadable ones get no column of ``inliers``).
+      num_images: how many images the viewpoint has, readable or not.
+
+    Returns:
+      int8 [N, num_images]: ``OUTCOME_INLIER``, ``OUTCOME_MISS``, or ``OUTCOME_UNKNOWN`` in
+      the points' own image and in every unreadable image.
+    """
+    inliers = np.asarray(inliers, bool)
+    columns = np.asarray(columns, np.int64)
+    if inliers.ndim != 2 or inliers.shape[1] != columns.shape[0]:
+        raise ValueError(f"inliers must be [N, {columns.shape[0]}], got {inliers.shape}")
+    out = np.full((inliers.shape[0], num_images), OUTCOME_UNKNOWN, np.int8)
+    out[:, columns] = np.where(inliers, OUTCOME_INLIER, OUTCOME_MISS).astype(np.int8)
+    out[:, columns[own_image]] = OUTCOME_UNKNOWN
+    return out
+
+
+def repeatability_from_outcomes(
+    outcomes: np.ndarray,
+    slots: np.ndarray,
+    readable: np.ndarray,
+    own_image: np.ndarray,
+    num_timestamps: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """y^j and its mask from per-image outcomes: the paper's average, row by row.
+
+    Args:
+      outcomes: int8 [N, n_images] (``pair_outcomes``), points of any images of one
+        viewpoint.
+      slots: int [n_images] timestamp index of every image.
+      readable: bool [n_images]: whether the image was read (only those count in m_{k,j}).
+      own_image: int [N] the image (column) each point belongs to; counted as an inlier.
+      num_timestamps: T.
+
+    Returns:
+      ``(label float32 [N, T], label_mask bool [N, T])``, equal to the labels
+      ``repeatability_labels`` gave these points.
+    """
+    outcomes = np.asarray(outcomes)
+    readable = np.asarray(readable, bool)
+    slots = np.asarray(slots, np.int64)
+    own_image = np.asarray(own_image, np.int64)
+    columns = np.flatnonzero(readable)
+    position = np.cumsum(readable) - 1  # image index -> its column among the readable ones
+    label = np.zeros((outcomes.shape[0], num_timestamps), np.float32)
+    mask = np.zeros((outcomes.shape[0], num_timestamps), bool)
+    for image in np.unique(own_image):
+        rows = np.flatnonzero(own_image == image)
+        inliers = outcomes[np.ix_(rows, columns)] == OUTCOME_INLIER
+        label[rows], mask[rows] = repeatability_labels(
+            inliers, slots[columns], int(position[image]), num_timestamps
+        )
     return label, mask

@@ -19,6 +19,13 @@ function is pure given its inputs (callables must be picklable, e.g. module-leve
 functions), so ``label_viewpoints`` can fan viewpoints out to processes, and the same
 function maps onto an Apache Beam ``Map`` later.
 
+Beside the records, ``label_viewpoint_outcomes`` returns what the labels average: the
+outcome of every interest point in every image of its viewpoint (inlier, not, unknown;
+``labels.pair_outcomes``) with the capture time of each image, for a predictor that learns
+from image pairs (``rp_jax.conditional``). They are computed where the labels are, from
+the same inliers, and cached beside them (``cache.outcomes_path``); the records are the
+same with or without them.
+
 The verification mode of a viewpoint and its application to every image pair live in
 ``rp_jax.groundtruth.verify_matches``. With neither poses nor a static camera (``"sfm"``
 mode) the paper's step 4 is SfM per viewpoint: ``sfm.reconstruct_viewpoint`` runs COLMAP
@@ -59,11 +66,13 @@ from rp_jax.groundtruth.verify_matches import (
 from rp_jax.sources.capture import Capture
 
 __all__ = [
+    "OUTCOME_KEYS",
     "RECORD_KEYS",
     "TIME_FIELDS",
     "attach_patches",
     "image_features",
     "label_viewpoint",
+    "label_viewpoint_outcomes",
     "label_viewpoints",
     "load_records",
 ]
@@ -87,6 +96,24 @@ RECORD_KEYS = (
     "viewpoint",
     "image_id",
     "keypoint_id",
+)
+# What ``label_viewpoint_outcomes`` returns beside the records: per row (the records' rows,
+# in their order) ``outcome`` int8 [N, n_images] (``labels.OUTCOME_*``), ``row_image``
+# int32 [N] (the row's own image) and ``keypoint_id``; per image of the viewpoint (all
+# captures, readable or not, in the order given) ``image_id`` str, ``image_readable`` bool,
+# ``image_time`` int32 [n, 6] (``TIME_FIELDS``), ``image_unix_time`` float64 (seconds, UTC),
+# ``image_cycle`` and ``image_slot`` int32; and ``viewpoint`` (a 0-d str).
+OUTCOME_KEYS = (
+    "outcome",
+    "row_image",
+    "keypoint_id",
+    "image_id",
+    "image_readable",
+    "image_time",
+    "image_unix_time",
+    "image_cycle",
+    "image_slot",
+    "viewpoint",
 )
 
 
@@ -233,6 +260,72 @@ def label_viewpoint(
       float32 [N,D], ``time`` int32 [N,6] (``TIME_FIELDS``), ``cycle``/``slot`` int32 [N],
       ``viewpoint``/``image_id`` str [N], ``keypoint_id`` int32 [N] (index within its image).
     """
+    records, _ = _label(
+        captures,
+        load_image=load_image,
+        num_timestamps=num_timestamps,
+        config=config,
+        cache_dir=cache_dir,
+        camera_of=camera_of,
+        load_category=load_category,
+        progress=progress,
+        matching_threads=matching_threads,
+        want_outcomes=False,
+    )
+    return attach_patches(records, captures, load_image) if with_patches else records
+
+
+def label_viewpoint_outcomes(
+    captures: Sequence[Capture],
+    *,
+    load_image: LoadImage,
+    num_timestamps: int,
+    config: GroundTruthConfig | None = None,
+    cache_dir: str | Path | None = None,
+    camera_of: CameraOf | None = None,
+    load_category: LoadCategory | None = None,
+    progress: bool = False,
+    matching_threads: int = 2,
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The records of ``label_viewpoint`` (no ``patch``) and the per-image-pair outcomes.
+
+    Arguments as ``label_viewpoint``. With ``cache_dir``, a viewpoint labelled before the
+    outcomes were cached is matched again (its features are read from the cache).
+
+    Returns:
+      ``(records, outcomes)``: ``records`` as ``label_viewpoint(..., with_patches=False)``;
+      ``outcomes`` the ``OUTCOME_KEYS`` arrays, one row per record in the same order, one
+      column per capture (``labels.repeatability_from_outcomes`` gives back the records'
+      ``label`` and ``label_mask``).
+    """
+    return _label(
+        captures,
+        load_image=load_image,
+        num_timestamps=num_timestamps,
+        config=config,
+        cache_dir=cache_dir,
+        camera_of=camera_of,
+        load_category=load_category,
+        progress=progress,
+        matching_threads=matching_threads,
+        want_outcomes=True,
+    )
+
+
+def _label(
+    captures: Sequence[Capture],
+    *,
+    load_image: LoadImage,
+    num_timestamps: int,
+    config: GroundTruthConfig | None,
+    cache_dir: str | Path | None,
+    camera_of: CameraOf | None,
+    load_category: LoadCategory | None,
+    progress: bool,
+    matching_threads: int,
+    want_outcomes: bool,
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None]:
+    """Records without patches and, computed (or read) when ``want_outcomes``, outcomes."""
     from rp_jax.progress import bar as tqdm  # the one progress helper
 
     config = GroundTruthConfig() if config is None else config
@@ -242,8 +335,12 @@ def label_viewpoint(
     if cache_dir is not None:
         out_path = cache.labels_path(cache_dir, config, num_timestamps, viewpoint)
         records = cache.read_labels(out_path, fingerprint)
+        if records is not None and not want_outcomes:
+            return records, None
         if records is not None:
-            return attach_patches(records, captures, load_image) if with_patches else records
+            outcomes = cache.read_outcomes(cache.outcomes_path(out_path), fingerprint)
+            if outcomes is not None:
+                return records, outcomes
 
     feats, readable = [], []
     for c in tqdm(captures, desc=f"features {viewpoint}", disable=not progress, leave=False):
@@ -269,6 +366,10 @@ def label_viewpoint(
 
     width, _ = features_lib.descriptor_size(config.detector)
     sfm_registered = None
+    readable_ids = {c.image_id for c in readable}
+    columns = np.array([i for i, c in enumerate(captures) if c.image_id in readable_ids],
+                       np.int64)
+    outcome_rows: list[np.ndarray] = []
     if not readable:
         records = _empty_records(num_timestamps, width)
     else:
@@ -317,6 +418,12 @@ def label_viewpoint(
             )
             slots = np.array([c.slot for c in readable], np.int64)
             records = _assemble(readable, feats, inliers, slots, num_timestamps, width)
+            outcome_rows = [
+                labels_lib.pair_outcomes(inliers[i], i, columns, len(captures))
+                for i, f in enumerate(feats)
+                if len(f["xy"])
+            ]
+    outcomes = _assemble_outcomes(captures, columns, records, outcome_rows)
 
     if out_path is not None:
         meta = {
@@ -331,7 +438,8 @@ def label_viewpoint(
             "config": config.tag(num_timestamps),
         }
         cache.write_labels(out_path, records, meta)
-    return attach_patches(records, readable, load_image) if with_patches else records
+        cache.write_outcomes(cache.outcomes_path(out_path), outcomes, fingerprint)
+    return records, outcomes if want_outcomes else None
 
 
 def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[str, np.ndarray]:
@@ -361,6 +469,34 @@ def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[st
     if not parts["xy"]:
         return _empty_records(num_timestamps, width)
     return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def _assemble_outcomes(captures, columns, records, outcome_rows) -> dict[str, np.ndarray]:
+    """``OUTCOME_KEYS`` arrays: the rows of ``records`` and the table of all ``captures``."""
+    n_images = len(captures)
+    readable = np.zeros(n_images, bool)
+    readable[columns] = True
+    index = {str(c.image_id): i for i, c in enumerate(captures)}
+    image_ids = np.asarray(records["image_id"]).astype(str)
+    outcome = (
+        np.concatenate(outcome_rows)
+        if outcome_rows
+        else np.zeros((0, n_images), np.int8)
+    )
+    if len(outcome) != len(image_ids):
+        raise AssertionError(f"{len(outcome)} outcome rows for {len(image_ids)} records")
+    return {
+        "outcome": outcome,
+        "row_image": np.array([index[i] for i in image_ids], np.int32).reshape(-1),
+        "keypoint_id": np.asarray(records["keypoint_id"], np.int32),
+        "image_id": np.array([str(c.image_id) for c in captures]),
+        "image_readable": readable,
+        "image_time": np.stack([_time_fields(c) for c in captures]).astype(np.int32),
+        "image_unix_time": np.array([c.time.timestamp() for c in captures], np.float64),
+        "image_cycle": np.array([c.cycle for c in captures], np.int32),
+        "image_slot": np.array([c.slot for c in captures], np.int32),
+        "viewpoint": np.array(str(captures[0].viewpoint)),
+    }
 
 
 # ----------------------------------------------------------------------------- many viewpoints
