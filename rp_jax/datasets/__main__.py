@@ -4,6 +4,8 @@
                                          [--data-dir DIR] [--quiet]
     python -m rp_jax.datasets curves NAME [--size tiny|small|full | --real] [--data-dir DIR]
                                           --out PNG
+    python -m rp_jax.datasets outcomes NAME [--size tiny|small|full | --manual-dir DIR | --real]
+                                            [--data-dir DIR] [--workers N] [--quiet]
 
 The flags mean what they mean in every command of the project (``rp_jax.command_line``):
 ``--data-dir`` is the TFDS data directory the dataset is built in, ``--manual-dir`` the real
@@ -18,7 +20,9 @@ per category where known. ``curves`` writes the average ground-truth repeatabili
 of each split to ``--out`` and, where categories are known, the Fig. 9 per-category
 curves to ``<out stem>_categories.png`` and each category's repeatability at the interest
 point's own timestamp against the others (parked cars: only their own date) to
-``<out stem>_own_date.png``.
+``<out stem>_own_date.png``. ``outcomes`` builds the dataset if needed, then writes the
+per-image-pair outcomes of its records with each image's time and conditions beside it
+(``rp_jax.datasets.outcomes``; what ``experiments.conditional`` trains on).
 """
 
 from __future__ import annotations
@@ -83,6 +87,13 @@ def _parser() -> argparse.ArgumentParser:
         "e.g. runner=DirectRunner,direct_num_workers=2,direct_running_mode=multi_processing",
     )
     command_line.add_quiet(b)
+    o = sub.add_parser("outcomes", help="write the per-image-pair outcomes beside a dataset")
+    common(o)
+    command_line.add_manual_dir(o)
+    o.add_argument("--workers", type=int, default=1,
+                   help="processes matching viewpoints whose outcomes were not cached "
+                   "(default 1)")
+    command_line.add_quiet(o)
     c = sub.add_parser("curves", help="write the average ground-truth curves as PNGs")
     common(c)
     c.add_argument("--out", type=Path, required=True, help="PNG of the per-split curves")
@@ -153,6 +164,22 @@ def _build(args) -> int:
             f"-> {builder.data_dir}"
         )
     _print_counts(args.name, args.config, args.data_dir)
+    return 0
+
+
+def _outcomes(args) -> int:
+    from rp_jax.datasets import loading, outcomes, provenance
+
+    if args.workers < 1:
+        raise _UsageError(f"--workers must be >= 1, got {args.workers}")
+    if args.manual_dir is not None and not args.manual_dir.is_dir():
+        raise _UsageError(f"--manual-dir {args.manual_dir} is not a folder")
+    builder = loading.get_builder(args.name, config=args.config, data_dir=args.data_dir)
+    provenance.prepare(builder, args.manual_dir)
+    start = time.perf_counter()
+    directory = outcomes.build(builder, manual_dir=args.manual_dir, workers=args.workers)
+    print(f"per-pair outcomes of {args.name}/{args.config} in {time.perf_counter() - start:.1f} s"
+          f" -> {directory}")
     return 0
 
 
@@ -259,7 +286,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.data_dir is not None and args.data_dir.exists() and not args.data_dir.is_dir():
             raise _UsageError(f"--data-dir {args.data_dir} is a file; expected the TFDS data "
                               "directory (a folder, created if absent)")
-        return _build(args) if args.command == "build" else _curves(args)
+        command = {"build": _build, "outcomes": _outcomes, "curves": _curves}[args.command]
+        return command(args)
     except (_UsageError, NotBuiltError, LayoutError, OutputFolderError) as err:
         print(f"{parser.prog} {args.command}: error: {err}", file=sys.stderr)
         return 2

@@ -449,6 +449,23 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
         )
 
     def _split_generators(self, dl_manager):
+        return {
+            split: self._generate_examples(jobs)
+            for split, jobs in self.split_jobs(dl_manager).items()
+        }
+
+    def local_download_manager(self, manual_dir: str | Path | None = None):
+        """What ``layout_root`` and ``cache_dir`` read of a download manager, without TFDS's
+        (no build): ``<data_dir>/downloads`` and the manual dir (default under it)."""
+        download_dir = Path(self._data_dir_root) / "downloads"
+        return types.SimpleNamespace(
+            download_dir=download_dir,
+            manual_dir=Path(manual_dir) if manual_dir else download_dir / "manual",
+        )
+
+    def split_jobs(self, dl_manager) -> dict[str, list[ViewpointJob]]:
+        """Split -> the ``ViewpointJob`` of each of its viewpoints, as a build labels them
+        (``rp_jax.datasets.outcomes`` reads the same jobs for the per-pair outcomes)."""
         cfg = self.builder_config
         root = self.layout_root(dl_manager)
         dataset = registry.get(self.DATASET)
@@ -469,10 +486,8 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
         cache = self.cache_dir(dl_manager)
         log.info("%s/%s: %s", self.DATASET, cfg.name, {s: len(v) for s, v in splits.items()})
         return {
-            split: self._generate_examples(
-                viewpoint_jobs(self.DATASET, captures, vps, config=gt_config, cache_dir=cache,
-                               records_per_image=cfg.records_per_image, seed=cfg.seed)
-            )
+            split: viewpoint_jobs(self.DATASET, captures, vps, config=gt_config, cache_dir=cache,
+                                  records_per_image=cfg.records_per_image, seed=cfg.seed)
             for split, vps in splits.items()
         }
 

@@ -1,0 +1,118 @@
+"""The conditions of each capture a conditional predictor can be given (issue 17; Sec. V).
+
+The paper's discussion names the sun direction and the weather as what its predictor
+misses. This module says, per capture, what is known of both, from what a user has:
+
+* **sun**: elevation and azimuth (degrees; azimuth clockwise from north) of the sun at the
+  capture instant and the camera's place (``rp_jax.sun``, the NOAA calculator; geometric,
+  no refraction, as the Webcam Clip Art ``.mat`` files). The place is the capture's
+  ``meta["latitude"]``/``["longitude"]`` (Webcam Clip Art's ``scene.json``, RobotCar's
+  INS), else ``data_specs/<dataset>.json``'s ``"location": {"latitude", "longitude"}``
+  when the dataset has one; NaN where neither is known. The world frame, not the camera's:
+  a static webcam's frame is fixed per viewpoint, and the datasets' poses are not geo-aligned.
+* **weather** (a small schema a station record or a forecast can fill): ``cloud_cover``
+  (0-1), ``precipitation`` (1 rain or snowfall, 0 dry), ``snow_cover`` (snow on the ground,
+  0 none to 1 deep: the synthetic world's level / 4) and ``weather`` (an index into
+  ``WEATHERS``). Known here only for the synthetic Webcam Clip Art world, which draws it
+  per scene and day (``rp_jax.sources.synthetic.conditions``) from the scene seed its
+  ``scene.json`` records; NaN (``weather`` -1) elsewhere.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from rp_jax import sun as sunlib
+from rp_jax.schedule import load_spec
+from rp_jax.sources.capture import Capture
+
+__all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "location_of"]
+
+# The weather kinds of the schema (the synthetic world's, which a station record maps onto).
+WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
+# float32 per capture, NaN unknown (``weather`` is int8, -1 unknown).
+CONDITION_FIELDS = ("sun_elevation_deg", "sun_azimuth_deg", "cloud_cover", "precipitation",
+                    "snow_cover", "weather")
+
+
+def _finite(value) -> float | None:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def location_of(capture: Capture, dataset: str) -> tuple[float, float] | None:
+    """(latitude, longitude) of the camera: the capture's own, else the dataset's; None."""
+    lat, lon = _finite(capture.meta.get("latitude")), _finite(capture.meta.get("longitude"))
+    if lat is not None and lon is not None:
+        return lat, lon
+    return _spec_location(dataset)
+
+
+@functools.lru_cache(maxsize=8)
+def _spec_location(dataset: str) -> tuple[float, float] | None:
+    try:
+        location = load_spec(dataset).get("location") or {}
+    except FileNotFoundError:
+        return None
+    lat, lon = _finite(location.get("latitude")), _finite(location.get("longitude"))
+    return None if lat is None or lon is None else (lat, lon)
+
+
+@functools.lru_cache(maxsize=64)
+def _synthetic_scene(scene_json: Path) -> tuple[int, float, float] | None:
+    """(scene seed, latitude, longitude) of a synthetic Webcam scene; None for a real one."""
+    try:
+        info = json.loads(scene_json.read_text())
+        return (int(info["synthetic"]["scene"]["seed"]), float(info["latitude"]),
+                float(info["longitude"]))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _synthetic_weather(capture: Capture) -> tuple[float, float, float, int] | None:
+    scene = _synthetic_scene(Path(capture.image_path).parent / "scene.json")
+    if scene is None:
+        return None
+    from rp_jax.sources.synthetic import conditions  # the world that drew the weather
+
+    seed, lat, lon = scene
+    c = conditions.conditions_at(seed, lat, lon, capture.time)
+    return (float(c.cloud_cover), float(c.weather in ("rain", "snow")), c.snow / 4.0,
+            WEATHERS.index(c.weather))
+
+
+def capture_conditions(captures: Sequence[Capture], dataset: str) -> dict[str, np.ndarray]:
+    """What is known of each capture's sun and weather (``CONDITION_FIELDS``).
+
+    Args:
+      captures: any captures (each read for its time, place and, for a synthetic Webcam
+        scene, its scene's ``scene.json``).
+      dataset: the dataset they come from (its data spec may give the place).
+
+    Returns:
+      float32 [n] arrays ``sun_elevation_deg``, ``sun_azimuth_deg``, ``cloud_cover``,
+      ``precipitation``, ``snow_cover`` (NaN unknown) and int8 [n] ``weather`` (index into
+      ``WEATHERS``, -1 unknown).
+    """
+    n = len(captures)
+    out = {k: np.full(n, np.nan, np.float32) for k in CONDITION_FIELDS[:-1]}
+    out["weather"] = np.full(n, -1, np.int8)
+    for i, c in enumerate(captures):
+        place = location_of(c, dataset)
+        if place is not None:
+            elevation, azimuth = sunlib.solar_position(sunlib.unix_seconds(c.time), *place)
+            out["sun_elevation_deg"][i], out["sun_azimuth_deg"][i] = elevation, azimuth
+        weather = _synthetic_weather(c)
+        if weather is not None:
+            (out["cloud_cover"][i], out["precipitation"][i], out["snow_cover"][i],
+             out["weather"][i]) = weather
+    return out
