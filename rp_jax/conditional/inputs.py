@@ -1,0 +1,207 @@
+"""Encodings of a capture's or a target's time and conditions (pure ``jax.numpy``).
+
+A *moment* is a dict of arrays of one shape ``S`` (a batch, or a batch by targets):
+
+* time, on the camera's local wall clock: ``hour``, ``minute``, ``day``, ``month`` (floats
+  allowed: any instant, not only the schedule's slots);
+* ``sun_elevation_deg``, ``sun_azimuth_deg`` (degrees, azimuth clockwise from north; NaN
+  unknown), read only with the ``sun`` condition;
+* ``cloud_cover``, ``precipitation``, ``snow_cover`` (0-1; NaN unknown) and ``weather``
+  (index into ``rp_jax.datasets.capture_conditions.WEATHERS``, -1 unknown), read only
+  with the ``weather`` condition.
+
+The time is encoded continuously: the angle of the time of day as sin/cos of its first
+``harmonics`` multiples, the day of the year as one sin/cos pair (``rp_jax.time_encoding``'s
+cyclic encoding, refined). A target is also given its difference to the capture (the
+paper's "time difference" reading of y^j, Sec. III-D). Unknown conditions encode as zeros
+with a known flag of 0, so a model trained with some unknown values takes them.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = [
+    "CONDITIONS",
+    "MOMENT_KEYS",
+    "SUN_KEYS",
+    "WEATHER_KEYS",
+    "capture_features",
+    "day_of_year",
+    "moment_at",
+    "num_weathers",
+    "parse_conditions",
+    "slot_moments",
+    "target_features",
+]
+
+CONDITIONS = ("sun", "weather", "semantics")
+TIME_KEYS = ("hour", "minute", "day", "month")
+SUN_KEYS = ("sun_elevation_deg", "sun_azimuth_deg")
+WEATHER_KEYS = ("cloud_cover", "precipitation", "snow_cover", "weather")
+MOMENT_KEYS = TIME_KEYS + SUN_KEYS + WEATHER_KEYS
+_NUM_WEATHERS = 5  # clear, partly_cloudy, overcast, rain, snow (capture_conditions.WEATHERS)
+# Days before the first of each month (365-day year); NumPy: no JAX array at import time.
+_MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype(np.float32)
+
+
+def moment_at(times, *, place: tuple[float, float] | None = None,
+              weather: dict | None = None) -> dict[str, np.ndarray]:
+    """The moment of timezone-aware datetimes (any instants): a query's target or capture.
+
+    Args:
+      times: datetimes (their wall clock is read, so give them in the camera's zone).
+      place: (latitude, longitude) of the camera: the sun at each instant
+        (``rp_jax.sun``); None leaves it unknown.
+      weather: arrays or scalars of ``WEATHER_KEYS`` (a station record, a forecast); None
+        leaves it unknown.
+
+    Returns:
+      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32).
+    """
+    from rp_jax import sun as sunlib
+
+    times = list(times)
+    n = len(times)
+    out = {k: np.array([getattr(t, k) for t in times], np.float32) for k in TIME_KEYS}
+    out.update({k: np.full(n, np.nan, np.float32) for k in SUN_KEYS + WEATHER_KEYS[:-1]})
+    out["weather"] = np.full(n, -1, np.int32)
+    if place is not None and n:
+        elevation, azimuth = sunlib.solar_position(
+            np.array([sunlib.unix_seconds(t) for t in times]), *place)
+        out["sun_elevation_deg"] = elevation.astype(np.float32)
+        out["sun_azimuth_deg"] = azimuth.astype(np.float32)
+    for key, value in (weather or {}).items():
+        if key not in WEATHER_KEYS:
+            raise ValueError(f"unknown weather field {key!r}; expected {WEATHER_KEYS}")
+        out[key] = np.broadcast_to(np.asarray(value, out[key].dtype), (n,)).copy()
+    return out
+
+
+def slot_moments(schedule, starts, *, place: tuple[float, float] | None = None,
+                 weather: dict | None = None) -> dict[str, np.ndarray]:
+    """The moments of a schedule's T timestamps in M cycles: arrays [T, M].
+
+    Args:
+      schedule: a ``rp_jax.schedule.TimeSchedule``.
+      starts: M timezone-aware datetimes, each the start of a cycle (midnight of a day for
+        a day cycle, of 1 January for a year cycle) on the camera's clock.
+      place, weather: as ``moment_at``; ``weather`` values may be [M] (one per cycle).
+    """
+    import datetime as dt
+
+    starts = list(starts)
+    times = [start + dt.timedelta(seconds=int(offset)) for offset in schedule.offsets
+             for start in starts]
+    T, M = schedule.num_timestamps, len(starts)
+    per_cycle = {k: np.broadcast_to(np.asarray(v), (T, M)).reshape(-1)
+                 for k, v in (weather or {}).items()}
+    flat = moment_at(times, place=place, weather=per_cycle or None)
+    return {k: v.reshape(T, M) for k, v in flat.items()}
+
+
+def num_weathers() -> int:
+    """How many weather kinds the one-hot encodes."""
+    return _NUM_WEATHERS
+
+
+def parse_conditions(text: str | tuple | list) -> tuple[str, ...]:
+    """``"sun,weather"`` -> ``("sun", "weather")`` in ``CONDITIONS`` order; ``""``: time only.
+
+    Raises:
+      ValueError: an unknown condition (the message lists the known ones).
+    """
+    items = text.split(",") if isinstance(text, str) else list(text)
+    items = [str(s).strip() for s in items if str(s).strip()]
+    unknown = sorted(set(items) - set(CONDITIONS))
+    if unknown:
+        raise ValueError(f"unknown conditions {unknown}; known: {', '.join(CONDITIONS)} "
+                         "(comma-separated; empty for time only)")
+    return tuple(c for c in CONDITIONS if c in items)
+
+
+def day_of_year(day, month) -> jnp.ndarray:
+    """0-based day of a 365-day year (29 Feb read as 28 Feb), float."""
+    day, month = jnp.asarray(day, jnp.float32), jnp.asarray(month, jnp.float32)
+    month_index = jnp.clip(month.astype(jnp.int32) - 1, 0, 11)
+    day_of_month = jnp.minimum(day, 28.0 + 3.0 * (month != 2))
+    return jnp.asarray(_MONTH_START)[month_index] + day_of_month - 1.0
+
+
+def _fractions(moment) -> tuple[jnp.ndarray, jnp.ndarray]:
+    hour = jnp.asarray(moment["hour"], jnp.float32)
+    minute = jnp.asarray(moment["minute"], jnp.float32)
+    return (hour * 60.0 + minute) / 1440.0, day_of_year(moment["day"], moment["month"]) / 365.0
+
+
+def _angles(fraction, harmonics: int) -> list[jnp.ndarray]:
+    out = []
+    for k in range(1, harmonics + 1):
+        out += [jnp.sin(2 * jnp.pi * k * fraction), jnp.cos(2 * jnp.pi * k * fraction)]
+    return out
+
+
+def _time(moment, harmonics: int) -> list[jnp.ndarray]:
+    day, year = _fractions(moment)
+    return _angles(day, harmonics) + _angles(year, 1)
+
+
+def _known(value) -> tuple[jnp.ndarray, jnp.ndarray]:
+    value = jnp.asarray(value, jnp.float32)
+    known = jnp.isfinite(value)
+    return jnp.where(known, value, 0.0), known.astype(jnp.float32)
+
+
+def _sun_vector(moment) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """Unit vector towards the sun (east, north, up) * known, and the known flag."""
+    el, known_el = _known(moment["sun_elevation_deg"])
+    az, known_az = _known(moment["sun_azimuth_deg"])
+    known = known_el * known_az
+    el, az = jnp.radians(el), jnp.radians(az)
+    vec = jnp.stack([jnp.cos(el) * jnp.sin(az), jnp.cos(el) * jnp.cos(az), jnp.sin(el)], -1)
+    return vec * known[..., None], known
+
+
+def _weather(moment) -> list[jnp.ndarray]:
+    out = []
+    for key in WEATHER_KEYS[:-1]:
+        value, known = _known(moment[key])
+        out += [value, known]
+    kind = jnp.asarray(moment["weather"]).astype(jnp.int32)
+    onehot = (kind[..., None] == jnp.arange(_NUM_WEATHERS)).astype(jnp.float32)
+    return out + [onehot[..., i] for i in range(_NUM_WEATHERS)]
+
+
+def capture_features(moment, conditions: tuple[str, ...], harmonics: int = 2) -> jnp.ndarray:
+    """The capture's time (and sun, weather) as a float32 vector per element: ``S + (d,)``."""
+    parts = _time(moment, harmonics)
+    if "sun" in conditions:
+        vec, known = _sun_vector(moment)
+        parts += [vec[..., i] for i in range(3)] + [known]
+    if "weather" in conditions:
+        parts += _weather(moment)
+    return jnp.stack(parts, axis=-1)
+
+
+def target_features(capture, target, conditions: tuple[str, ...],
+                    harmonics: int = 2) -> jnp.ndarray:
+    """A target's time (and sun, weather) and its difference to the capture: ``S + (d,)``.
+
+    ``capture`` holds arrays of shape ``B``, ``target`` of ``B + (K,)`` (K targets each).
+    The sun's part includes the cosine of the angle between the capture's and the target's
+    sun directions (1: the same light; a shadow edge is where it was).
+    """
+    cap_day, cap_year = _fractions(capture)
+    day, year = _fractions(target)
+    parts = _time(target, harmonics)
+    parts += _angles(day - cap_day[..., None], harmonics) + _angles(year - cap_year[..., None], 1)
+    if "sun" in conditions:
+        vec, known = _sun_vector(target)
+        cap_vec, cap_known = _sun_vector(capture)
+        agreement = jnp.sum(vec * cap_vec[..., None, :], axis=-1)
+        parts += [vec[..., i] for i in range(3)] + [known, agreement,
+                                                    known * cap_known[..., None]]
+    if "weather" in conditions:
+        parts += _weather(target)
+    return jnp.stack(parts, axis=-1)

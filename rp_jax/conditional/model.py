@@ -1,0 +1,158 @@
+"""The conditional repeatability predictor: one image pair's outcome, not a T-vector.
+
+    logit = score(encode(patch, xy, capture [, category]), capture, target)
+
+``encode`` runs the patch encoder of the paper's predictor (``rp_jax.model.PatchEncoder``)
+once per interest point and mixes in its position, its capture time and (by
+``conditions``) the capture's sun and weather and the point's semantic class; ``score``
+turns that code and any number of targets (time, its difference to the capture, the
+target's sun and weather) into one logit each: the log-odds that the point is re-detected
+and matched as an inlier in an image taken then. ``__call__`` does both, for [B] points
+and [B, K] targets. Everything is a pure function of ``params``: ``jax.jit``, ``jax.vmap``
+(over targets or points) and ``jax.grad`` compose with it.
+
+The paper's T-vector is the mean probability over a timestamp's targets: ``t_vector`` for
+targets that carry a slot (a viewpoint's images, the capture's own image counted as an
+inlier as in Sec. III-D), ``t_vector_at_slots`` for the slot times of given days.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import optax
+
+from rp_jax import categories
+from rp_jax.conditional import inputs
+from rp_jax.model import PatchEncoder
+
+__all__ = [
+    "ConditionalPredictor",
+    "init_params",
+    "pair_loss",
+    "t_vector",
+    "t_vector_at_slots",
+]
+
+_NUM_CATEGORIES = max(categories.NAMES) + 1  # ids 0..OTHER; -1 unknown is one more row
+_CATEGORY_FEATURES = 8
+
+
+class ConditionalPredictor(nn.Module):
+    """Patch, position, capture and target -> logit of the pair's outcome.
+
+    Attributes:
+      conditions: a subset of ``inputs.CONDITIONS`` (empty: time only).
+      encoder_channels, encoder_features, dtype: the patch encoder (as the paper's RP).
+      hidden: width of the point code and the pair layers.
+      harmonics: sin/cos multiples of the time-of-day angle.
+    """
+
+    conditions: tuple[str, ...] = ()
+    encoder_channels: Sequence[int] = (64, 64, 128)
+    encoder_features: int = 128
+    hidden: int = 128
+    harmonics: int = 2
+    dtype: Any = jnp.float32
+
+    def setup(self):
+        unknown = set(self.conditions) - set(inputs.CONDITIONS)
+        if unknown:
+            raise ValueError(f"unknown conditions {sorted(unknown)}; known {inputs.CONDITIONS}")
+        self.patch_encoder = PatchEncoder(self.encoder_channels, self.encoder_features,
+                                          self.dtype)
+        if "semantics" in self.conditions:
+            self.category_embedding = nn.Embed(_NUM_CATEGORIES + 1, _CATEGORY_FEATURES)
+        self.point1 = nn.Dense(self.hidden)
+        self.point2 = nn.Dense(self.hidden)
+        self.point_to_pair = nn.Dense(self.hidden)
+        self.target_to_pair = nn.Dense(self.hidden)
+        self.pair = nn.Dense(self.hidden // 2)
+        self.logit = nn.Dense(1)
+
+    def encode(self, patches, xy, capture, category=None) -> jnp.ndarray:
+        """[B, hidden] code of each point (patches preprocessed, ``model.preprocess_patches``)."""
+        feat = self.patch_encoder(patches).astype(jnp.float32)
+        parts = [feat, jnp.asarray(xy, jnp.float32),
+                 inputs.capture_features(capture, self.conditions, self.harmonics)]
+        if "semantics" in self.conditions:
+            ids = jnp.clip(jnp.asarray(category, jnp.int32) + 1, 0, _NUM_CATEGORIES)
+            parts.append(self.category_embedding(ids))
+        h = nn.relu(self.point1(jnp.concatenate(parts, axis=-1)))
+        return nn.relu(self.point2(h))
+
+    def score(self, code, capture, target) -> jnp.ndarray:
+        """[B, K] logits for ``code`` [B, hidden] and targets of shape [B, K]."""
+        t = inputs.target_features(capture, target, self.conditions, self.harmonics)
+        h = nn.relu(self.point_to_pair(code)[:, None, :] + self.target_to_pair(t))
+        return self.logit(nn.relu(self.pair(h)))[..., 0]
+
+    def __call__(self, patches, xy, capture, target, category=None) -> jnp.ndarray:
+        return self.score(self.encode(patches, xy, capture, category), capture, target)
+
+
+def _zeros_moment(shape) -> dict:
+    return {k: jnp.zeros(shape) for k in inputs.MOMENT_KEYS}
+
+
+def init_params(net: ConditionalPredictor, rng) -> dict:
+    """Initial ``params`` (shapes only under ``jax.eval_shape``)."""
+    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)), _zeros_moment((1,)),
+                    _zeros_moment((1, 1)), jnp.zeros((1,), jnp.int32))["params"]
+
+
+def pair_loss(logits, outcome, example_mask=None) -> jnp.ndarray:
+    """Mean binary cross-entropy over the known pairs (``outcome`` 1 / 0; -1 unknown)."""
+    known = (outcome >= 0).astype(jnp.float32)
+    if example_mask is not None:
+        known = known * jnp.asarray(example_mask, jnp.float32)[:, None]
+    bce = optax.sigmoid_binary_cross_entropy(logits, (outcome == 1).astype(jnp.float32))
+    return jnp.sum(known * bce) / jnp.maximum(jnp.sum(known), 1.0)
+
+
+def t_vector(probabilities, target_slot, target_valid, own_target, num_timestamps: int):
+    """The paper's y^j from pair probabilities: the mean over each timestamp's targets.
+
+    Args:
+      probabilities: [B, K] of each point's K targets.
+      target_slot: int [B, K] timestamp of each target.
+      target_valid: bool [B, K]: targets that count (a readable image; padding does not).
+      own_target: bool [B, K]: the point's own image, counted as an inlier (Sec. III-D).
+      num_timestamps: T.
+
+    Returns:
+      ``(t_vector [B, T], mask [B, T])``: mask False where no target has that timestamp.
+    """
+    p = jnp.where(own_target, 1.0, probabilities) * target_valid
+    onehot = jax.nn.one_hot(target_slot, num_timestamps) * target_valid[..., None]
+    count = jnp.sum(onehot, axis=1)
+    total = jnp.einsum("bk,bkt->bt", p, onehot)
+    return total / jnp.maximum(count, 1.0), count > 0
+
+
+def t_vector_at_slots(apply_fn: Callable, params, point: dict, capture: dict,
+                      slot_moments: dict) -> jnp.ndarray:
+    """Mean probability at each timestamp over the given days: [B, T].
+
+    Args:
+      apply_fn: ``ConditionalPredictor(...).apply``.
+      point: ``patch`` (preprocessed) [B, 64, 64, 3], ``xy_normalized`` [B, 2] and, with
+        semantics, ``category`` [B].
+      capture: the points' capture moment, arrays [B].
+      slot_moments: the targets, arrays [T, M]: timestamp j on day m (time fields and
+        conditions), the same for every point.
+    """
+    variables = {"params": params}
+    code = apply_fn(variables, point["patch"], point["xy_normalized"], capture,
+                    point.get("category"), method=ConditionalPredictor.encode)
+    T, M = jnp.shape(slot_moments["hour"])
+    batch = jnp.shape(code)[0]
+    flat = {k: jnp.broadcast_to(jnp.reshape(jnp.asarray(v, jnp.float32), (1, T * M)),
+                                (batch, T * M))
+            for k, v in slot_moments.items()}
+    logits = apply_fn(variables, code, capture, flat, method=ConditionalPredictor.score)
+    return jnp.mean(jax.nn.sigmoid(logits).reshape(batch, T, M), axis=-1)
