@@ -22,6 +22,11 @@ the reader converts them to the camera's wall clock for the slots. Each frame's 
 holds the sun at its instant and place (``sun.solar_position``, geometric) as the
 author's files do: v7.3, radians, the azimuth as minus the compass azimuth; the reader
 checks the names' clock against it.
+
+Beyond the paper (issue 17, the long-term decay): ``plan_years`` writes the same layout
+for ``webcam_years``, each scene's webcam on the same days of six years (2012-2017) with
+the world's slow changes on (``slow_changes``, ages from 2012-01-01), and for
+``webcam_years_frozen``, the same frames of the same world without them.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import datetime as dt
 import logging
 import math
 import zoneinfo
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,9 +58,13 @@ from rp_jax.sources.synthetic.frame_jobs import (
 __all__ = [
     "WEBCAM_CITIES",
     "WEBCAM_STREET_M",
+    "YEARS",
+    "YEARS_REFERENCE_DATE",
     "plan",
+    "plan_years",
     "webcam_days",
     "webcam_times",
+    "years_days",
 ]
 
 log = logging.getLogger(__name__)
@@ -195,12 +205,40 @@ def _webcam_camera(scene, facade_azimuth: float, rng: np.random.Generator, width
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
     """The frames of the ``webcam_clipart`` preset and its metadata writer."""
     spec = _WEBCAM_SIZES[size]
+    return _plan(
+        "webcam_clipart",
+        out_dir,
+        size,
+        seed,
+        spec.scenes,
+        spec.width,
+        spec.height,
+        days_of=lambda i: webcam_days(i, spec.days, seed),
+        times_of=lambda day, tz, rng: webcam_times(day, tz, spec, rng),
+    )
+
+
+def _plan(
+    preset: str,
+    out_dir: Path,
+    size: str,
+    seed: int,
+    num_scenes: int,
+    width: int,
+    height: int,
+    *,
+    days_of: Callable[[int], list[dt.date]],
+    times_of: Callable[[dt.date, zoneinfo.ZoneInfo, np.random.Generator], list[dt.datetime]],
+    extra: tuple = (),
+) -> Plan:
+    """The frames of a Webcam Clip Art layout: scene i's webcam on the days ``days_of(i)``
+    at the instants ``times_of(day, zone, rng)``, its world built with ``extra``."""
     splits = load_spec("webcam_clipart")["splits"]["synthetic"]
     names = splits["train"] + splits["test"]
     chosen = list(range(len(names)))
-    if spec.scenes < len(names):
+    if num_scenes < len(names):
         # Keep one train and the test scene so both splits exist in a tiny run.
-        chosen = list(range(spec.scenes - 1)) + [len(names) - 1]
+        chosen = list(range(num_scenes - 1)) + [len(names) - 1]
     jobs: list[FrameJob] = []
     sidecars: list[tuple[Path, dict]] = []
     for i in chosen:
@@ -214,16 +252,17 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
             latitude=lat,
             longitude=lon,
             vegetation=float(seeded_rng(seed, 3, i).uniform(0.2, 0.7)),
+            extra=extra,
         )
         rng = seeded_rng(seed, 4, i)
         scene = frame_jobs.scene_of(scene_spec)
-        K, R0, t0 = _webcam_camera(scene, facade_azimuth, rng, spec.width, spec.height)
+        K, R0, t0 = _webcam_camera(scene, facade_azimuth, rng, width, height)
         C = -R0.T @ t0
         scene_dir = out_dir / name
-        days = webcam_days(i, spec.days, seed)
+        days = days_of(i)
         for d_idx, day in enumerate(days):
             day_rng = seeded_rng(seed, 5, i, d_idx)
-            for k, when in enumerate(webcam_times(day, tz, spec, day_rng)):
+            for k, when in enumerate(times_of(day, tz, day_rng)):
                 # A mast sways: sub-pixel to ~1 px of rotation.
                 jitter = small_rotation(seeded_rng(seed, 6, i, d_idx, k), 0.6 / K[0, 0])
                 R = jitter @ R0
@@ -235,8 +274,8 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                         K=K,
                         R=R,
                         t=-R @ C,
-                        width=spec.width,
-                        height=spec.height,
+                        width=width,
+                        height=height,
                         distortion=np.zeros(4),
                         when=when,
                         frame_seed=frame_seed(seed, i, d_idx, k),
@@ -274,4 +313,78 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
             write_layout.write_webcam_sun_angles(job.image_path, 90.0 - float(elevation),
                                                  float(azimuth))
 
-    return Plan("webcam_clipart", out_dir, jobs, finalize)
+    return Plan(preset, out_dir, jobs, finalize)
+
+
+# --------------------------------------------------------------------------- over the years
+
+# ``webcam_years``: the same webcams over six years, the world's slow changes on
+# (``slow_changes``: new tenants, repaints, new signs, trees that grow, die and are
+# replanted), ages counted from the first day of the first year; ``webcam_years_frozen``:
+# the same frames of the same world without them (the control).
+YEARS = (2012, 2013, 2014, 2015, 2016, 2017)
+YEARS_REFERENCE_DATE = "2012-01-01"
+_DAYS_APART = 7  # a scene's days of one year, a week apart (the decay's "same time" bin)
+
+
+@dataclasses.dataclass(frozen=True)
+class _YearsSize:
+    scenes: int
+    days_per_year: int
+    slots: tuple[int, ...]  # which of the 21 slots
+    width: int
+    height: int
+
+
+_YEARS_SIZES = {
+    "tiny": _YearsSize(scenes=1, days_per_year=2, slots=(10,), width=160, height=120),
+    "small": _YearsSize(scenes=4, days_per_year=2, slots=(4, 10, 16), width=320, height=240),
+    "full": _YearsSize(scenes=8, days_per_year=3, slots=tuple(range(0, 21, 2)), width=640,
+                       height=480),
+}
+
+
+def years_days(scene_index: int, days_per_year: int, seed: int) -> list[dt.date]:
+    """A scene's capture days: the same dates in every one of ``YEARS`` (so the season and
+    the light are the same each year and only the years differ), ``days_per_year`` of them
+    a week apart, in a month of leaves and no snow (May-August) drawn per scene."""
+    rng = seeded_rng(seed, 11, scene_index)
+    month, first = int(rng.integers(5, 9)), int(rng.integers(1, 8))
+    return [
+        dt.date(year, month, first + _DAYS_APART * d)
+        for year in YEARS
+        for d in range(days_per_year)
+    ]
+
+
+def _years_times(
+    day: dt.date, tz: zoneinfo.ZoneInfo, slots: tuple[int, ...], rng: np.random.Generator
+) -> list[dt.datetime]:
+    """The chosen slots of a day, a few seconds late as a real webcam's."""
+    base = dt.datetime(day.year, day.month, day.day, tzinfo=tz)
+    first, step = _SCHEDULE["first_minutes"], _SCHEDULE["step_minutes"]
+    return [
+        base + dt.timedelta(minutes=first + step * j, seconds=int(rng.integers(0, 90)))
+        for j in slots
+    ]
+
+
+def plan_years(out_dir: Path, size: str, seed: int, *, slow_changes: bool = True) -> Plan:
+    """The frames of ``webcam_years`` (``slow_changes``) or ``webcam_years_frozen`` (not):
+    the Webcam Clip Art layout, each scene on the same days of 2012-2017."""
+    from rp_jax.sources.synthetic.slow_changes import SlowChanges
+
+    spec = _YEARS_SIZES[size]
+    extra = (("slow_changes", SlowChanges(YEARS_REFERENCE_DATE)),) if slow_changes else ()
+    return _plan(
+        "webcam_years" if slow_changes else "webcam_years_frozen",
+        out_dir,
+        size,
+        seed,
+        spec.scenes,
+        spec.width,
+        spec.height,
+        days_of=lambda i: years_days(i, spec.days_per_year, seed),
+        times_of=lambda day, tz, rng: _years_times(day, tz, spec.slots, rng),
+        extra=extra,
+    )

@@ -9,7 +9,10 @@ One module per preset writes its layout (each module's docstring shows it):
 ``plan_webcam`` (``webcam_clipart``: 8 static webcams, AMOS-style UTC names, a ``.mat`` of
 sun angles per frame), ``plan_cmu`` (``cmu_seasons``: a car's two cameras on the paper's 12
 dates, with the reference traversal's COLMAP model) and ``plan_robotcar`` (``robotcar``: the
-9 traversals of Table I, raw Bayer frames near 23 viewpoints, ``ins.csv`` at 10 Hz). They
+9 traversals of Table I, raw Bayer frames near 23 viewpoints, ``ins.csv`` at 10 Hz); beyond
+the paper, ``webcam_years`` (``plan_webcam.plan_years``: the webcams on the same days of
+six years, the world's slow changes on, ``slow_changes``) and ``webcam_years_frozen`` (the
+same frames without them), for the long-term decay of issue 17. They
 share the frame jobs and their rendering (``frame_jobs``). This module names the presets
 and renders one (``plan``, ``generate``); the presets' public names stay importable from it.
 
@@ -19,6 +22,7 @@ handful of slots), ``small`` for a quick look, ``full`` the paper's scale.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -79,7 +83,13 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-PRESET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar")
+PRESET_NAMES = (
+    "webcam_clipart",
+    "cmu_seasons",
+    "robotcar",
+    "webcam_years",
+    "webcam_years_frozen",
+)
 # Bumped whenever the same (preset, size, seed) renders different pixels or file names; a
 # layout rendered by another version is rendered again
 # (``rp_jax.datasets.builder.ensure_synthetic``).
@@ -101,6 +111,9 @@ _PLANNERS = {
     "webcam_clipart": plan_webcam.plan,
     "cmu_seasons": plan_cmu.plan,
     "robotcar": plan_robotcar.plan,
+    # Beyond the paper: the Webcam layout over six years, with and without slow changes.
+    "webcam_years": plan_webcam.plan_years,
+    "webcam_years_frozen": functools.partial(plan_webcam.plan_years, slow_changes=False),
 }
 
 

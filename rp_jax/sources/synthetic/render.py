@@ -737,7 +737,8 @@ def render(
       view: the camera (a non-zero distortion gives the distorted image).
       when: timezone-aware capture instant. The sun comes from its UTC instant and the
         scene's latitude/longitude; weather from (scene seed, local date); passing cars and
-        people from (scene seed, instant).
+        people from (scene seed, instant); a world with slow changes stands as on its
+        local date (``slow_changes``).
       seed: sensor-noise seed of this frame (nothing else depends on it).
       weather: the day's sky when it is known (``conditions.conditions_at``); None draws it.
 
@@ -753,10 +754,12 @@ def render(
         autumn=cond.autumn,
     )
     dyn, dyn_boxes, dyn_alpha = dynamic_quads(scene, when)
-    quads = QuadSet.concat([scene.static, dyn])
+    # The static world as it stands on the day (its slow changes, when it has them).
+    static = scene.static if scene.slow_changes is None else scene.slow_changes.static_at(when)
+    quads = QuadSet.concat([static, dyn])
     N = quads.n
     alpha_idx = np.concatenate(
-        [scene.alpha_casters, scene.static.n + np.asarray(dyn_alpha, np.int64)]
+        [scene.alpha_casters, static.n + np.asarray(dyn_alpha, np.int64)]
     ).astype(int)
     boxes = np.concatenate(
         [scene.buildings, scene.furniture_boxes, np.array(dyn_boxes, np.float64).reshape(-1, 2, 3)]

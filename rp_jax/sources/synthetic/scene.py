@@ -32,6 +32,7 @@ import dataclasses
 import enum
 from collections import OrderedDict
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from rp_jax import categories
 from rp_jax.sources.synthetic import ground_textures as gt
 from rp_jax.sources.synthetic import object_textures as ot
 from rp_jax.sources.synthetic import textures as tx
+
+if TYPE_CHECKING:
+    from rp_jax.sources.synthetic.slow_changes import SlowChanges, SlowWorld
 
 __all__ = [
     "Material",
@@ -323,6 +327,8 @@ class Scene:
       lamps: (L, 3) positions of street-lamp heads.
       parking_slots: (S, 4) rows (x, y, direction, slot id).
       textures: the lazily generated texture cache.
+      slow_changes: the world's slow changes over the years (``slow_changes.SlowWorld``),
+        None (the default) for a world that stays as built.
     """
 
     seed: int
@@ -345,6 +351,7 @@ class Scene:
     parking_slots: np.ndarray
     textures: TextureCache
     n_planes: int
+    slow_changes: SlowWorld | None = None
 
     @property
     def drivable_y(self) -> dict:
@@ -415,6 +422,7 @@ def build_scene(
     vegetation: float = 0.5,
     lanes: int = 2,
     building_height: tuple[float, float] | None = None,
+    slow_changes: SlowChanges | None = None,
     **kwargs,
 ) -> Scene:
     """Builds a deterministic synthetic street.
@@ -428,6 +436,9 @@ def build_scene(
         (houses with front lawns, many trees).
       lanes: travel lanes (2 or 4).
       building_height: optional (min, max) metres overriding the style's heights.
+      slow_changes: optional ``slow_changes.SlowChanges``: the world built is the world on
+        its reference date, and new tenants, repaints, new signs and growing and replanted
+        trees change it after (from streams of their own: the world built is the same).
       **kwargs: reserved; unknown keys raise.
 
     Returns:
@@ -759,6 +770,11 @@ def build_scene(
             sid += 1
 
     static = qb.build()
+    slow_world = None
+    if slow_changes is not None:
+        from rp_jax.sources.synthetic.slow_changes import index_world  # (imports this module)
+
+        slow_world = index_world(seed, static, tc, slow_changes)
     return Scene(
         seed=seed,
         kind=kind,
@@ -785,6 +801,7 @@ def build_scene(
         parking_slots=np.array(slots, np.float64).reshape(-1, 4),
         textures=tc,
         n_planes=plane[0],
+        slow_changes=slow_world,
     )
 
 

@@ -16,6 +16,11 @@ fourth *aux* channel whose meaning depends on the material (see ``scene.Material
 window ids on facades, snow susceptibility on ground and roofs, alpha on cut-out objects
 (trees, people), emission on lamps and car lights. Sizes are multiples of 16 so that the
 mip pyramid (``mip_pyramid``) keeps texel centres exactly aligned.
+
+Why this module is over 600 lines: the facade is one recipe whose draws, in their order,
+are every window, door and sign of a building; the walls, windows, signs and shop fronts
+it paints, and the later tenants and repaints of ``slow_changes``, read its generator in
+step and stay beside it.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ __all__ = [
     "finish",
     "put_text",
     "rand_colour",
+    "repaint_colours",
     "value_noise",
     "facade_texture",
     "side_wall_texture",
@@ -148,6 +154,7 @@ def _wall(
     rng: np.random.Generator,
     texel: float | tuple[float, float],
     photo_seed: int | None = None,
+    paint: np.ndarray | None = None,
 ) -> np.ndarray:
     """Wall albedo (H, W, 3) float32 for a style: brick, plaster, siding or concrete.
 
@@ -156,6 +163,9 @@ def _wall(
     brick colour when the photos are available and ``photo_seed`` is given, else drawn
     brick by brick. Either way ``rng`` is drawn from exactly as before, so everything a
     caller draws after the wall (windows, doors, signs, snow) stays where it was.
+    ``paint``, when given, is the colour a repaint put on a plaster, siding or concrete
+    wall in place of the drawn one (bare brick is not painted; ``rng`` is drawn from as
+    without it).
     """
     texel_yx = (
         (float(texel), float(texel)) if np.isscalar(texel) else (float(texel[0]), float(texel[1]))
@@ -183,17 +193,20 @@ def _wall(
             rgb = np.where(mortar[..., None], _MORTAR * (0.9 + 0.2 * grain), rgb)
     elif style == "siding":
         base = _SIDING_COLOURS[rng.integers(len(_SIDING_COLOURS))]
+        base = base if paint is None else paint
         board = 0.18 * ppm
         frac = (yy % board) / board
         shade = 0.8 + 0.2 * np.clip(frac * 3, 0, 1)
         rgb = base * shade[..., None] * (0.95 + 0.08 * grain)
     elif style == "concrete":
         base = np.float32([0.62, 0.61, 0.58]) * (0.85 + 0.3 * rng.random())
+        base = base if paint is None else paint
         panel_w, panel_h = rng.uniform(1.2, 3.0) * ppm, rng.uniform(1.0, 3.0) * ppm
         joints = ((xx % panel_w) < 1.5) | ((yy % panel_h) < 1.5)
         rgb = base * (0.85 + 0.25 * grain) * np.where(joints, 0.6, 1.0)[..., None]
     else:  # plaster
         base = _PLASTER_COLOURS[rng.integers(len(_PLASTER_COLOURS))]
+        base = base if paint is None else paint
         rgb = base * (0.88 + 0.24 * grain)
     # Weathering: large blotches and vertical rain streaks.
     streak = cv2.resize(
@@ -332,6 +345,67 @@ def sign_texture(rng: np.random.Generator, w: int, h: int) -> np.ndarray:
     return img
 
 
+# Streams of the slow changes (``slow_changes``) in a facade's own seed: a later tenant's
+# shop front and a repaint's colours; the facade's first draws never read them.
+_TENANT_STREAM = 101
+_REPAINT_STREAM = 102
+
+
+def repaint_colours(seed: int, repaint: int) -> tuple[np.ndarray, np.ndarray]:
+    """(wall, trim) float32 RGB of a facade's ``repaint``-th repaint: an exterior paint
+    (any hue, muted, light to mid) and a white or muted trim, drawn from (seed, repaint)."""
+    rng = np.random.default_rng([int(seed), _REPAINT_STREAM, int(repaint)])
+    hue = rng.random()
+    c = np.array([abs(hue * 6 - 3) - 1, 2 - abs(hue * 6 - 2), 2 - abs(hue * 6 - 4)], np.float32)
+    sat, value = rng.uniform(0.05, 0.4), rng.uniform(0.55, 0.92)
+    wall = (value * (1 - sat + sat * np.clip(c, 0, 1))).astype(np.float32)
+    trim = np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else rand_colour(rng, 0.3) * 0.7
+    return wall, trim.astype(np.float32)
+
+
+def _shopfront(
+    rgb: np.ndarray,
+    aux: np.ndarray,
+    rng: np.random.Generator,
+    y_top: int,
+    ppm: float,
+    width_m: float,
+    wid: int,
+) -> tuple[int, tuple[int, int, int]]:
+    """Paints a ground-floor shop from ``rng`` in place: a shop window with a display each
+    side of a door, and a sign above. Returns the next window id and the sign's top ledge
+    (x0, x1, y)."""
+    H, W = rgb.shape[:2]
+    sx0, sx1 = int(0.3 * ppm), W - int(0.3 * ppm)
+    door_w = int(1.0 * ppm)
+    door_x = int(rng.uniform(0.3, max(0.31, width_m - 1.4)) * ppm)
+    sh_top = y_top + int(0.9 * ppm)
+    for a, b in ((sx0, door_x), (door_x + door_w, sx1)):
+        if b - a > 20:
+            _window(
+                rgb,
+                aux,
+                a,
+                sh_top,
+                b - a,
+                H - int(0.4 * ppm) - sh_top,
+                wid % 255 + 1,
+                rng,
+                np.float32([0.15, 0.15, 0.16]),
+            )
+            wid += 1
+    door_col = rand_colour(rng, 0.4) * 0.6
+    rgb[sh_top:H, door_x : door_x + door_w] = door_col
+    rgb[sh_top + 8 : H - 40, door_x + 8 : door_x + door_w - 8] *= 0.6
+    sign_h = int(0.6 * ppm)
+    sign_w = int(rng.uniform(0.5, 0.9) * (sx1 - sx0))
+    sx = sx0 + int(rng.uniform(0, 1) * (sx1 - sx0 - sign_w))
+    rgb[y_top + int(0.15 * ppm) : y_top + int(0.15 * ppm) + sign_h, sx : sx + sign_w] = (
+        sign_texture(rng, sign_w, sign_h)
+    )
+    return wid, (sx, sx + sign_w, y_top + int(0.15 * ppm))
+
+
 def facade_texture(
     seed: int,
     width_m: float,
@@ -342,6 +416,9 @@ def facade_texture(
     texel: float = TEXEL_M,
     snow: int = 0,
     snow_pattern: int = 0,
+    *,
+    tenant: int | None = None,
+    repaint: int | None = None,
 ) -> np.ndarray:
     """Street-facing facade of one building.
 
@@ -357,19 +434,35 @@ def facade_texture(
         string courses, the cornice, sign and air-conditioner tops), ``_ledge_snow``.
       snow_pattern: id of the snow pack (``conditions.snow_state``): which stretches of the
         ledges hold snow.
+      tenant: with a shop front, the n-th tenant after the one the world was built with
+        (``slow_changes``): their shop windows, door and sign, drawn from (seed, n); None
+        (the default) draws the first tenant's alone, exactly as before.
+      repaint: the n-th repaint since the world was built: walls (but bare brick) and
+        trims in the colours ``repaint_colours(seed, n)``; None keeps the first paint.
 
     Returns:
       RGBA uint8 whose aux channel holds 128 + a lighting rank (0..126) on glass, 0 on walls.
     """
     rng = np.random.default_rng(seed)
+    paint = None if repaint is None else repaint_colours(seed, repaint)
     ledges: list[tuple[int, int, int]] = []  # (x0, x1, y): horizontal ledges, top at row y
     W, H = pad16(width_m / texel), pad16(height_m / texel)
     ppm = W / width_m
-    rgb = _wall(style, H, W, rng, (height_m / H, 1.0 / ppm), photo_seed=seed)
+    rgb = _wall(
+        style,
+        H,
+        W,
+        rng,
+        (height_m / H, 1.0 / ppm),
+        photo_seed=seed,
+        paint=None if paint is None else paint[0],
+    )
     aux = np.zeros((H, W), np.uint8)
     frame_col = (
         np.float32([0.92, 0.91, 0.88]) if rng.random() < 0.5 else rand_colour(rng, 0.3) * 0.7
     )
+    if paint is not None:  # a repaint does the trim too (drawn above all the same)
+        frame_col = paint[1]
     n_floors = max(1, int(height_m / floor_h))
     win_w = rng.uniform(0.8, 1.4)
     win_h = rng.uniform(1.2, 1.7) if style != "siding" else rng.uniform(1.0, 1.4)
@@ -380,37 +473,17 @@ def facade_texture(
     start_floor = 0
     if shopfront:
         start_floor = 1
-        gh = int(min(floor_h, height_m) * ppm)
-        y_top = H - gh
-        # Shop window with a display, a door and a sign above.
-        sx0, sx1 = int(0.3 * ppm), W - int(0.3 * ppm)
-        door_w = int(1.0 * ppm)
-        door_x = int(rng.uniform(0.3, max(0.31, width_m - 1.4)) * ppm)
-        sh_top = y_top + int(0.9 * ppm)
-        for a, b in ((sx0, door_x), (door_x + door_w, sx1)):
-            if b - a > 20:
-                _window(
-                    rgb,
-                    aux,
-                    a,
-                    sh_top,
-                    b - a,
-                    H - int(0.4 * ppm) - sh_top,
-                    wid % 255 + 1,
-                    rng,
-                    np.float32([0.15, 0.15, 0.16]),
-                )
-                wid += 1
-        door_col = rand_colour(rng, 0.4) * 0.6
-        rgb[sh_top:H, door_x : door_x + door_w] = door_col
-        rgb[sh_top + 8 : H - 40, door_x + 8 : door_x + door_w - 8] *= 0.6
-        sign_h = int(0.6 * ppm)
-        sign_w = int(rng.uniform(0.5, 0.9) * (sx1 - sx0))
-        sx = sx0 + int(rng.uniform(0, 1) * (sx1 - sx0 - sign_w))
-        rgb[y_top + int(0.15 * ppm) : y_top + int(0.15 * ppm) + sign_h, sx : sx + sign_w] = (
-            sign_texture(rng, sign_w, sign_h)
-        )
-        ledges.append((sx, sx + sign_w, y_top + int(0.15 * ppm)))
+        y_top = H - int(min(floor_h, height_m) * ppm)
+        wall = rgb[y_top:].copy() if tenant is not None else None
+        first_wid = wid
+        wid, sign_ledge = _shopfront(rgb, aux, rng, y_top, ppm, width_m, wid)
+        if tenant is not None:
+            # A later tenant: the ground floor's bare wall, then their own shop front, from
+            # a stream of their own (the first tenant's draws above keep ``rng`` in step).
+            rgb[y_top:], aux[y_top:] = wall, 0
+            tenant_rng = np.random.default_rng([int(seed), _TENANT_STREAM, int(tenant)])
+            _, sign_ledge = _shopfront(rgb, aux, tenant_rng, y_top, ppm, width_m, first_wid)
+        ledges.append(sign_ledge)
     else:
         door_w, door_h = int(1.0 * ppm), int(2.2 * ppm)
         dx = int(rng.uniform(0.4, max(0.41, width_m - 1.5)) * ppm)
