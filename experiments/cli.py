@@ -13,7 +13,7 @@ Every experiment takes the same flags (the project's one vocabulary,
                          installed wheel)
     --config FILE[:ARG]  an ml_collections config file (default: the experiment's own, called
                          with --size); ``ml_collections.config_flags`` loads it
-    --config.FIELD=VALUE any field of the config, e.g. --config.num_epochs=3 (config_flags)
+    --config.FIELD=VALUE any field of the config, e.g. --config.train.num_epochs=3 (config_flags)
     --print-config       print the resolved config and exit
     --quiet              no progress output
     --cross-validate     instead of the test run: hold out each training viewpoint in turn
@@ -100,6 +100,22 @@ def _field(config: ml_collections.ConfigDict, override: str):
     return True, node
 
 
+def _regrouped(parser, config, item: str, path: str) -> tuple[str, str]:
+    """A field named as before the config was grouped (``--config.num_epochs=3``) is read as
+    its grouped name (``--config.train.num_epochs=3``) with a deprecation warning, for one
+    release; anything else is returned unchanged."""
+    from rp_jax.configs import default
+
+    prefix, name = path.split("config.", 1)
+    head, _, rest = name.partition(".")
+    new = default.FLAT_TO_GROUPED.get(head)
+    if new is None or not _field(config, f"--config.{new}")[0]:
+        return item, path
+    new_path = f"{prefix}config.{new}" + (f".{rest}" if rest else "")
+    command_line.deprecation_warning(parser.prog, path, new_path)
+    return new_path + item[len(path):], new_path
+
+
 def _check_fields(parser, config: ml_collections.ConfigDict, overrides: list[str]) -> list[str]:
     """Every override names a field (else ``parser.error`` listing the fields there);
     ``--config.FLAG=yes|no`` of a bool field reads as true/false, as the earlier parser did."""
@@ -110,6 +126,9 @@ def _check_fields(parser, config: ml_collections.ConfigDict, overrides: list[str
             continue
         path = item.split("=", 1)[0]
         found, value = _field(config, item)
+        if not found:
+            item, path = _regrouped(parser, config, item, path)
+            found, value = _field(config, item)
         if not found:
             parent = path.rsplit(".", 1)[0]
             _, node = _field(config, parent) if "." in _OVERRIDE.sub("", path) else (True, config)
@@ -231,8 +250,8 @@ def parse_flags(argv: list[str] | None, name: str,
     if args.manual_dir is not None:
         if not args.manual_dir.is_dir():
             parser.error(f"--manual-dir {args.manual_dir} is not a directory")
-        config.data_config = "real"
-        config.manual_dir = str(args.manual_dir.absolute())
+        config.input.data_config = "real"
+        config.input.manual_dir = str(args.manual_dir.absolute())
         size = "real"
     elif args.config_file is not None:
         stem, _, arg = args.config_file.partition(":")
@@ -240,7 +259,7 @@ def parse_flags(argv: list[str] | None, name: str,
         size = "_".join(filter(None, (file.parent.name if file.stem == "config" else file.stem,
                                       arg)))
     if args.data_dir is not None:
-        config.data_dir = str(args.data_dir.absolute())
+        config.input.data_dir = str(args.data_dir.absolute())
     if args.print_config:
         print(config, end="")  # ConfigDict's YAML, as the Flax examples log it
         raise SystemExit(0)

@@ -26,18 +26,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m experiments.demo", description=__doc__.splitlines()[0].replace("`", ""),
         epilog="--config.FIELD=VALUE  override one field of the config (ml_collections."
-        "config_flags), e.g. --config.num_epochs=3; --print-config lists the fields.")
+        "config_flags), e.g. --config.train.num_epochs=3; --print-config lists the fields.")
     parser.add_argument("--workdir", default="runs/demo_learnable_task",
                         help="run directory (resumes if present)")
     command_line.add_config_file(parser, default="rp_jax/configs/default.py")
     command_line.add_quiet(parser)
-    command_line.deprecated_alias(parser, "--epochs", "--config.num_epochs=N", dest="epochs",
+    command_line.deprecated_alias(parser, "--epochs", "--config.train.num_epochs=N", dest="epochs",
                                   type=int)
     args, rest = parser.parse_known_args(argv)
     config = cli.load_config(parser, default.get_config, args.config_file,
                              cli.override_args(rest, parser))
     if getattr(args, "epochs", None) is not None:
-        config.num_epochs = args.epochs
+        config.train.num_epochs = args.epochs
     if args.print_config:
         print(config, end="")
         return 0
@@ -51,10 +51,10 @@ def main(argv: list[str] | None = None) -> int:
     except (train.ConfigError, train.WorkdirMismatchError) as e:
         print(f"{parser.prog}: error: {e}", file=sys.stderr)
         return 2
-    schedule = schedule_lib.preset(config.schedule)
-    train_rec = learnable_task.make_learnable_task(config.num_train_points, schedule,
+    schedule = schedule_lib.preset(config.input.schedule)
+    train_rec = learnable_task.make_learnable_task(config.input.num_train_points, schedule,
                                                    seed=config.seed)
-    val_rec = learnable_task.make_learnable_task(config.num_val_points, schedule,
+    val_rec = learnable_task.make_learnable_task(config.input.num_val_points, schedule,
                                                  seed=config.seed + 1)
     keys = input_pipeline.MODEL_KEYS
     print(f"learnable task: {len(train_rec['patch'])} train / {len(val_rec['patch'])} val points, "
@@ -82,8 +82,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _times(rec, rp):
     return np.asarray(time_encoding.encode(rec["hour"], rec["minute"], rec["day"], rec["month"],
-                                           fields=rp.config.time_fields,
-                                           encoding=rp.config.time_encoding))
+                                           fields=rp.config.model.time_fields,
+                                           encoding=rp.config.model.time_encoding))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 A checkpoint holds a train state as the tree ``{"params", "opt_state", "step"}``
 (``state_tree``). A workdir keeps the latest ones under ``checkpoints/`` and, with
-``config.keep_best``, the best validation epoch under ``best/``. ``restore_params`` reads the
+``config.train.keep_best``, the best validation epoch under ``best/``. ``restore_params`` reads the
 parameters alone back (an orbax partial restore), so loading a predictor needs neither the
 optimiser nor ``rp_jax.train``.
 """
@@ -19,7 +19,7 @@ import orbax.checkpoint as ocp
 __all__ = ["CHECKPOINTS_DIR", "BEST_DIR", "state_tree", "writer", "reader", "restore_params"]
 
 CHECKPOINTS_DIR = "checkpoints"  # the latest train states of a workdir
-BEST_DIR = "best"  # the best validation epoch (config.keep_best)
+BEST_DIR = "best"  # the best validation epoch (config.train.keep_best)
 
 
 def state_tree(state) -> dict:

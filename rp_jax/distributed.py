@@ -4,7 +4,7 @@
 the local devices; after ``initialize`` it holds the devices of every process (each process
 its own block, in process order), the state is replicated over all of them and each
 process reads only its rows of every global batch (``process_rows``): the batch a step sees
-is the one a single process would see with the same global ``config.batch_size``, so the
+is the one a single process would see with the same global ``config.input.batch_size``, so the
 loss curve and the parameters are the single-process ones up to float summation order.
 
 On CPU the processes reduce gradients over TCP with gloo (JAX's CPU collectives); on GPU
@@ -91,7 +91,7 @@ def make_mesh(num_devices: int = 0) -> Mesh:
         by_process.setdefault(device.process_index, []).append(device)
     counts = {p: len(ds) for p, ds in by_process.items()}
     if num_devices and num_devices > min(counts.values()):
-        raise ValueError(f"config.num_devices={num_devices} but the processes have {counts} "
+        raise ValueError(f"config.train.num_devices={num_devices} but the processes have {counts} "
                          "local devices")
     blocks = [sorted(by_process[p], key=lambda d: d.id) for p in sorted(by_process)]
     devices = [d for block in blocks for d in (block[:num_devices] if num_devices else block)]

@@ -47,6 +47,6 @@ def make_mesh(num_devices: int = 0) -> Mesh:
     if num_devices:
         if num_devices > len(devices):
             raise ValueError(
-                f"config.num_devices={num_devices} but only {len(devices)} local devices")
+                f"config.train.num_devices={num_devices} but only {len(devices)} local devices")
         devices = devices[:num_devices]
     return Mesh(np.asarray(devices), ("data",))

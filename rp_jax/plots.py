@@ -379,7 +379,7 @@ def experiment_figures(
     """
     workdir = Path(workdir)
     labels = list(schedule.labels)
-    name = f"{config.dataset} ({config.data_config})"
+    name = f"{config.input.dataset} ({config.input.data_config})"
     paths = [
         plot_average_curves(
             {

@@ -35,6 +35,7 @@ from jax.sharding import PartitionSpec as P
 from rp_jax import checkpoints, time_encoding
 from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
+from rp_jax.configs import default as configs_default
 from rp_jax.platform import make_mesh
 
 __all__ = ["Predictor", "load", "repeatability", "check_inputs", "at_time", "encode_times"]
@@ -94,7 +95,7 @@ def check_inputs(patches, xy, time_features, *, config) -> None:
       patches: [N, 64, 64, 3], integers in [0, 255] or floats in [0, 1].
       xy: [N, 2] normalised coordinates in [0, 1].
       time_features: [N, d] encoded times, d and value range given by ``config``.
-      config: the run's config (``time_fields``, ``time_encoding``).
+      config: the run's config (``model.time_fields``, ``model.time_encoding``).
 
     Raises:
       ValueError: naming the argument, what was expected and what it got.
@@ -108,10 +109,10 @@ def check_inputs(patches, xy, time_features, *, config) -> None:
                          f"got dtype {patches.dtype}")
     if tuple(xy.shape) != (n, 2):
         raise ValueError(f"xy must be [N, 2] = [{n}, 2], got shape {tuple(xy.shape)}")
-    d = time_encoding.num_features(config.time_fields)
+    d = time_encoding.num_features(config.model.time_fields)
     if tuple(time_features.shape) != (n, d):
         raise ValueError(f"times must be N={n} datetimes or an [N, {d}] array "
-                         f"(time_fields={config.time_fields!r}), "
+                         f"(model.time_fields={config.model.time_fields!r}), "
                          f"got shape {tuple(time_features.shape)}")
     p, x, t = _concrete(patches), _concrete(xy), _concrete(time_features)
     if p is not None:
@@ -136,9 +137,9 @@ def check_inputs(patches, xy, time_features, *, config) -> None:
     if t is not None:
         if not np.all(np.isfinite(t)):
             raise ValueError("times contains NaN or infinite values")
-        lo, hi = (0.0, 1.0) if config.time_encoding == "raw" else (-1.0, 1.0)
+        lo, hi = (0.0, 1.0) if config.model.time_encoding == "raw" else (-1.0, 1.0)
         if t.size and (t.min() < lo - 1e-6 or t.max() > hi + 1e-6):
-            raise ValueError(f"encoded times ({config.time_encoding!r} encoding) must be in "
+            raise ValueError(f"encoded times ({config.model.time_encoding!r} encoding) must be in "
                              f"[{lo:g}, {hi:g}], got values in {_range_of(t)}; encode "
                              "datetimes with predict.encode_times")
 
@@ -147,8 +148,8 @@ def encode_times(times: Sequence[dt.datetime], config) -> np.ndarray:
     """Datetimes (read on their own wall clock) -> [N, d] time features of ``config``."""
     f = time_encoding.fields_from_datetimes(times)
     return np.asarray(time_encoding.encode(f["hour"], f["minute"], f["day"], f["month"],
-                                           fields=config.time_fields,
-                                           encoding=config.time_encoding))
+                                           fields=config.model.time_fields,
+                                           encoding=config.model.time_encoding))
 
 
 def at_time(scores, schedule: schedule_lib.TimeSchedule,
@@ -335,7 +336,8 @@ class Predictor:
                 f"{self.schedule.name!r} ({self.schedule.span_text()}), e.g. {t.isoformat()} "
                 f"at index {outside[0]}; the predictor has no repeatability for them")
         if not times:
-            return np.zeros((0, time_encoding.num_features(self.config.time_fields)), np.float32)
+            d = time_encoding.num_features(self.config.model.time_fields)
+            return np.zeros((0, d), np.float32)
         return encode_times(times, self.config).astype(np.float32)
 
 
@@ -370,10 +372,12 @@ def load(workdir: str | os.PathLike, *, step: int | None = None,
             raise ValueError(f"{workdir} is not a trained workdir: {p.name} is missing "
                              "(expected config.json, schedule.json and checkpoints/), nor "
                              f"the name of a shipped model ({', '.join(shipped.names())})")
-    config = ml_collections.ConfigDict(json.loads(cfg_path.read_text()))
+    config = ml_collections.ConfigDict(
+        configs_default.upgrade(json.loads(cfg_path.read_text())))
     schedule = schedule_lib.TimeSchedule.from_dict(json.loads(sched_path.read_text()))
     if (workdir / checkpoints.BEST_DIR).exists() and step is None:
-        ckpt_dir = workdir / checkpoints.BEST_DIR  # the best validation epoch (config.keep_best)
+        # The best validation epoch (config.train.keep_best).
+        ckpt_dir = workdir / checkpoints.BEST_DIR
     if not ckpt_dir.exists():
         raise ValueError(f"{workdir} has no checkpoints/ directory: train first")
     manager = checkpoints.reader(ckpt_dir)
@@ -397,7 +401,7 @@ def _load_shipped(name: str, batch_size: int) -> Predictor:
     from rp_jax import shipped
 
     config_dict, schedule_dict, params = shipped.read(name)
-    config = ml_collections.ConfigDict(config_dict)
+    config = ml_collections.ConfigDict(configs_default.upgrade(config_dict))
     schedule = schedule_lib.TimeSchedule.from_dict(schedule_dict)
     want = jax.tree.map(lambda a: (tuple(a.shape), str(a.dtype)),
                         _abstract_params(config, schedule.num_timestamps))
@@ -410,5 +414,5 @@ def _load_shipped(name: str, batch_size: int) -> Predictor:
 def _abstract_params(config, T: int):
     """Shapes and dtypes of the params ``config`` defines (nothing is computed)."""
     net = model_lib.create_model(config, T)
-    d = time_encoding.num_features(config.time_fields)
+    d = time_encoding.num_features(config.model.time_fields)
     return jax.eval_shape(lambda: model_lib.init_params(net, jax.random.key(0), d))

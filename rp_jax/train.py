@@ -3,7 +3,7 @@
 ``train_and_evaluate(config, workdir, train_source, val_source)`` fits the predictor with the
 paper's MSE loss, validates each epoch, writes ``config.json``, ``schedule.json`` and
 ``metrics.jsonl`` in the workdir and keeps orbax checkpoints under ``workdir/checkpoints``
-(and, with ``config.keep_best``, the parameters of the best validation epoch under
+(and, with ``config.train.keep_best``, the parameters of the best validation epoch under
 ``workdir/best``, which ``rp_jax.predict.load`` prefers: model selection on held-out
 training viewpoints, never on the test split).
 Started again on the same workdir, it resumes from the last checkpoint; because the data
@@ -40,6 +40,7 @@ from jax.sharding import PartitionSpec as P
 from rp_jax import checkpoints, distributed, files, losses, time_encoding
 from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
+from rp_jax.configs import default as configs_default
 from rp_jax.datasets import input_pipeline
 from rp_jax.model import create_model
 
@@ -80,16 +81,30 @@ class ConfigError(ValueError):
     """A config field out of range; the message names the field, its value and what is expected."""
 
 
-# The config's lifetimes. A workdir's model is made by these fields (what it learns from and
-# how): a run resumes only under the same values. Everything else is runtime: where the data
-# is read from (``data_dir``, ``synthetic_root``), evaluation (``eval_batch_size``,
-# ``knn_k``, ...), cadence and devices, all free to change between runs of one workdir.
-# ``num_epochs`` is identity once anything is trained (see ``_check_same_config``).
-MODEL_FIELDS = ("seed", "schedule", "time_fields", "time_encoding", "model", "batch_size",
-                "learning_rate", "warmup_epochs", "weight_decay", "grad_clip", "augment",
-                "keep_best")
-DATA_FIELDS = ("dataset", "data_config", "manual_dir", "num_train_points", "num_val_points",
-               "validation_fraction")
+# The config's lifetimes (dotted paths in its groups, rp_jax/configs/default.py). A workdir's
+# model is made by these fields (what it learns from and how): a run resumes only under the
+# same values. Everything else is runtime: where the data is read from (``input.data_dir``,
+# ``input.synthetic_root``), the whole ``eval`` group, checkpoint cadence and devices, all
+# free to change between runs of one workdir. ``train.num_epochs`` is identity once anything
+# is trained (see ``_check_same_config``).
+MODEL_FIELDS = ("seed", "model", "input.schedule", "input.batch_size", "input.augment",
+                "train.learning_rate", "train.warmup_epochs", "train.weight_decay",
+                "train.grad_clip", "train.keep_best")
+DATA_FIELDS = ("input.dataset", "input.data_config", "input.manual_dir",
+               "input.num_train_points", "input.num_val_points", "input.validation_fraction")
+
+
+def field_value(config, dotted: str, default=None):
+    """The value of a dotted field (``"train.num_epochs"``) of a config or config dict, or
+    ``default`` where a group or field is missing."""
+    node = config
+    for key in dotted.split("."):
+        if not hasattr(node, "get"):
+            return default
+        node = node.get(key, None)
+        if node is None:
+            return default
+    return node
 
 
 def _expect(ok: bool, field: str, value, expected: str) -> None:
@@ -112,12 +127,12 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     ``train_and_evaluate`` calls it again for callers that skip the driver.
     """
     def positive_int(field: str, minimum: int = 1) -> None:
-        value = config.get(field)
+        value = field_value(config, field)
         _expect(_is_int(value) and value >= minimum, field, value, f"an integer >= {minimum}")
 
     def number(field: str, lo: float, hi: float | None = None, *, open_lo: bool = False,
                open_hi: bool = False, node=None, prefix: str = "") -> None:
-        value = (config if node is None else node).get(field)
+        value = field_value(config if node is None else node, field)
         ok = _is_number(value) and bool(np.isfinite(value))
         if ok:
             ok = (value > lo if open_lo else value >= lo) and (
@@ -130,13 +145,17 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
         _expect(ok, prefix + field, value, expected)
 
     positive_int("seed", 0)
-    _expect(config.schedule in schedule_lib.PRESETS, "schedule", config.schedule,
-            f"one of {list(schedule_lib.PRESETS)}")
-    _expect(config.time_fields in time_encoding.FIELDS, "time_fields", config.time_fields,
-            f"one of {list(time_encoding.FIELDS)}")
-    _expect(config.time_encoding in time_encoding.ENCODINGS, "time_encoding",
-            config.time_encoding, f"one of {list(time_encoding.ENCODINGS)}")
+    for group in ("input", "model", "train", "eval"):
+        _expect(isinstance(config.get(group), ml_collections.ConfigDict), group,
+                config.get(group), "a group of fields (rp_jax/configs/default.py); a config "
+                "written before the grouping reads through rp_jax.configs.default.upgrade")
+    _expect(config.input.schedule in schedule_lib.PRESETS, "input.schedule",
+            config.input.schedule, f"one of {list(schedule_lib.PRESETS)}")
     m = config.model
+    _expect(m.time_fields in time_encoding.FIELDS, "model.time_fields", m.time_fields,
+            f"one of {list(time_encoding.FIELDS)}")
+    _expect(m.time_encoding in time_encoding.ENCODINGS, "model.time_encoding",
+            m.time_encoding, f"one of {list(time_encoding.ENCODINGS)}")
     channels = m.encoder_channels
     _expect(isinstance(channels, (tuple, list)) and len(channels) > 0
             and all(_is_int(c) and c >= 1 for c in channels), "model.encoder_channels",
@@ -145,38 +164,40 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
             m.encoder_features, "an integer >= 1")
     number("gem_init_p", 0, open_lo=True, node=m, prefix="model.")
     _expect(m.dtype in model_lib.DTYPES, "model.dtype", m.dtype, f"one of {list(model_lib.DTYPES)}")
-    for field in ("batch_size", "eval_batch_size", "num_epochs", "eval_every_epochs",
-                  "checkpoint_every_epochs", "max_checkpoints_to_keep"):
+    for field in ("input.batch_size", "eval.batch_size", "train.num_epochs",
+                  "eval.every_epochs", "train.checkpoint_every_epochs",
+                  "train.max_checkpoints_to_keep"):
         positive_int(field)
-    positive_int("num_devices", 0)
-    number("learning_rate", 0, open_lo=True)
-    number("warmup_epochs", 0)
-    number("weight_decay", 0)
-    number("grad_clip", 0, open_lo=True)
-    a = config.augment
-    number("brightness", 0, node=a, prefix="augment.")
-    number("contrast", 0, 1, open_hi=True, node=a, prefix="augment.")
-    number("colour", 0, 1, open_hi=True, node=a, prefix="augment.")
-    number("zoom", 0, node=a, prefix="augment.")
-    _expect(isinstance(a.flip, bool), "augment.flip", a.flip, "true or false")
-    if config.get("dataset") == "learnable_task":
-        positive_int("num_train_points")
-        positive_int("num_val_points")
+    positive_int("train.num_devices", 0)
+    number("train.learning_rate", 0, open_lo=True)
+    number("train.warmup_epochs", 0)
+    number("train.weight_decay", 0)
+    number("train.grad_clip", 0, open_lo=True)
+    a = config.input.augment
+    number("brightness", 0, node=a, prefix="input.augment.")
+    number("contrast", 0, 1, open_hi=True, node=a, prefix="input.augment.")
+    number("colour", 0, 1, open_hi=True, node=a, prefix="input.augment.")
+    number("zoom", 0, node=a, prefix="input.augment.")
+    _expect(isinstance(a.flip, bool), "input.augment.flip", a.flip, "true or false")
+    if config.input.get("dataset") == "learnable_task":
+        positive_int("input.num_train_points")
+        positive_int("input.num_val_points")
 
 
 def check_devices(config: ml_collections.ConfigDict) -> Mesh:
-    """The data mesh of ``config.num_devices``, or ``ConfigError`` if there are fewer devices
+    """The data mesh of ``config.train.num_devices``, or ``ConfigError`` if there are fewer devices
     or they do not divide both batch sizes. Starts JAX's backend: drivers call it after
     ``platform.configure_cpu``, before building anything."""
     try:
-        mesh = distributed.make_mesh(config.num_devices)  # all processes' devices
+        mesh = distributed.make_mesh(config.train.num_devices)  # all processes' devices
     except ValueError as e:
         raise ConfigError(str(e)) from None
     n_dev = mesh.devices.size
-    for field in ("batch_size", "eval_batch_size"):
-        _expect(config[field] % n_dev == 0, field, config[field],
+    for field in ("input.batch_size", "eval.batch_size"):
+        value = field_value(config, field)
+        _expect(value % n_dev == 0, field, value,
                 f"a multiple of the {n_dev} devices the batches are split over "
-                "(or set config.num_devices)")
+                "(or set config.train.num_devices)")
     return mesh
 
 
@@ -200,25 +221,26 @@ def model_inputs(batch: dict, config: ml_collections.ConfigDict):
     patches = model_lib.preprocess_patches(batch["patch"])
     time_features = time_encoding.encode(
         batch["hour"], batch["minute"], batch["day"], batch["month"],
-        fields=config.time_fields, encoding=config.time_encoding,
+        fields=config.model.time_fields, encoding=config.model.time_encoding,
     )
     return patches, batch["xy_normalized"], time_features
 
 
 def _learning_rate_schedule(config, steps_per_epoch: int):
-    total = max(int(config.num_epochs * steps_per_epoch), 2)
-    warmup = max(1, min(int(config.warmup_epochs * steps_per_epoch), total - 1))
-    return optax.warmup_cosine_decay_schedule(0.0, config.learning_rate, warmup, total)
+    t = config.train
+    total = max(int(t.num_epochs * steps_per_epoch), 2)
+    warmup = max(1, min(int(t.warmup_epochs * steps_per_epoch), total - 1))
+    return optax.warmup_cosine_decay_schedule(0.0, t.learning_rate, warmup, total)
 
 
 def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -> TrainState:
     """Initialised parameters and AdamW (with clipping and a warm-up cosine schedule)."""
     net = create_model(config, num_timestamps)
-    params = model_lib.init_params(net, rng, time_encoding.num_features(config.time_fields))
+    params = model_lib.init_params(net, rng, time_encoding.num_features(config.model.time_fields))
     tx = optax.chain(
-        optax.clip_by_global_norm(config.grad_clip),
+        optax.clip_by_global_norm(config.train.grad_clip),
         optax.adamw(_learning_rate_schedule(config, steps_per_epoch),
-                    weight_decay=config.weight_decay),
+                    weight_decay=config.train.weight_decay),
     )
     return TrainState.create(apply_fn=net.apply, params=params, tx=tx)
 
@@ -274,7 +296,7 @@ def train_step(state: TrainState, batch: dict, config) -> tuple[TrainState, dict
     draws the same as an uninterrupted one.
     """
     patches, xy, time_features = model_inputs(batch, config)
-    aug = config.augment
+    aug = config.input.augment
     if aug.brightness or aug.contrast or aug.flip or aug.colour or aug.zoom:
         rng = jax.random.fold_in(jax.random.key(config.seed), state.step)
         patches = augment_patches(patches, rng, brightness=aug.brightness, contrast=aug.contrast,
@@ -375,7 +397,7 @@ def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
     if not path.exists():
         return
     try:
-        old = json.loads(path.read_text())
+        old = configs_default.upgrade(json.loads(path.read_text()))
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise WorkdirMismatchError(f"{path} is not a run's config ({e}); use a new --workdir "
                                    "or delete it") from e
@@ -387,10 +409,11 @@ def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
             f"{workdir} holds a run with a different config ({shown}); use a new --workdir "
             "or delete the old one"
         )
-    if trained and old.get("num_epochs") != new.get("num_epochs"):
+    was, asked = field_value(old, "train.num_epochs"), field_value(new, "train.num_epochs")
+    if trained and was != asked:
         raise WorkdirMismatchError(
-            f"{workdir} holds a model trained with num_epochs={old.get('num_epochs')}, asked "
-            f"num_epochs={new.get('num_epochs')}: its learning-rate schedule follows num_epochs, "
+            f"{workdir} holds a model trained with train.num_epochs={was}, asked "
+            f"train.num_epochs={asked}: its learning-rate schedule follows num_epochs, "
             "so it can be neither cut short nor extended; use a new --workdir, or delete "
             f"{workdir / checkpoints.CHECKPOINTS_DIR}, {workdir / checkpoints.BEST_DIR} and "
             f"{workdir / 'metrics.jsonl'} to train again here"
@@ -398,10 +421,11 @@ def _check_same_config(workdir: Path, config, *, trained: bool) -> None:
 
 
 def _flat_diff(old: dict, new: dict, fields) -> list[tuple[str, Any, Any]]:
-    """(dotted name, old, new) of each of ``fields`` (nested dicts field by field) that differs."""
+    """(dotted name, old, new) of each of ``fields`` (dotted paths; nested dicts field by
+    field) that differs."""
     out = []
     for key in fields:
-        a, b = old.get(key), new.get(key)
+        a, b = field_value(old, key), field_value(new, key)
         if isinstance(a, dict) and isinstance(b, dict):
             out += [(f"{key}.{k}", x, y) for k, x, y in _flat_diff(a, b, sorted(set(a) | set(b)))]
         elif a != b:
@@ -426,8 +450,9 @@ def _raise_non_finite(what: str, value: float, epoch: int, step: int, config,
             if last is not None else "no checkpoint was written")
     raise NonFiniteLossError(
         f"training stopped: {what} is {value} at epoch {epoch}, step {step} "
-        f"(learning_rate={config.learning_rate}, grad_clip={config.grad_clip}); {kept}; "
-        "check the inputs for NaN, or train again with a lower --config.learning_rate "
+        f"(learning_rate={config.train.learning_rate}, grad_clip={config.train.grad_clip}); "
+        f"{kept}; check the inputs for NaN, or train again with a lower "
+        "--config.train.learning_rate "
         "in a new --workdir"
     )
 
@@ -448,7 +473,7 @@ def train_and_evaluate(
       config: see ``rp_jax/configs/default.py``.
       workdir: the run's directory.
       train_source, val_source: ``input_pipeline.ArraySource`` (or any record source).
-      schedule: the timestamps of the labels; default ``schedule.preset(config.schedule)``.
+      schedule: the timestamps of the labels; default ``schedule.preset(config.input.schedule)``.
       on_epoch_end: called with (epoch, metrics) after each epoch's checkpoint (tests use it
         to interrupt a run).
       progress: show a tqdm bar per epoch.
@@ -460,7 +485,7 @@ def train_and_evaluate(
 
     validate_config(config)
     workdir = Path(workdir).absolute()
-    schedule = schedule or schedule_lib.preset(config.schedule)
+    schedule = schedule or schedule_lib.preset(config.input.schedule)
     if not isinstance(train_source, input_pipeline.ArraySource):
         train_source = input_pipeline.ArraySource.from_records(train_source)
     if val_source is not None and not isinstance(val_source, input_pipeline.ArraySource):
@@ -472,10 +497,11 @@ def train_and_evaluate(
                          f"has T={T}")
 
     mesh = check_devices(config)
-    steps_per_epoch = input_pipeline.num_train_steps(len(train_source), config.batch_size)
+    steps_per_epoch = input_pipeline.num_train_steps(len(train_source), config.input.batch_size)
     if steps_per_epoch == 0:
         raise ValueError(
-            f"{len(train_source)} training records is fewer than one batch of {config.batch_size}"
+            f"{len(train_source)} training records is fewer than one batch of "
+            f"{config.input.batch_size}"
         )
 
     check_workdir(workdir, config)
@@ -483,7 +509,7 @@ def train_and_evaluate(
     state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
     compiled = _compile(config, mesh, state.apply_fn)
     manager = checkpoints.writer(workdir / checkpoints.CHECKPOINTS_DIR,
-                                 config.max_checkpoints_to_keep)
+                                 config.train.max_checkpoints_to_keep)
     start_epoch = 0
     if manager.latest_step() is not None:
         restored = manager.restore(
@@ -497,22 +523,22 @@ def train_and_evaluate(
     state = distributed.put(state, compiled.replicated)
 
     metrics_path = workdir / "metrics.jsonl"
-    keep_best = config.keep_best and val_source is not None
+    keep_best = config.train.keep_best and val_source is not None
     best_manager = checkpoints.writer(workdir / checkpoints.BEST_DIR, 1) if keep_best else None
     best_val = _best_val_so_far(metrics_path)
     try:
-        for epoch in range(start_epoch, int(config.num_epochs)):
+        for epoch in range(start_epoch, int(config.train.num_epochs)):
             t0 = time.perf_counter()
-            rows = distributed.process_rows(compiled.data, config.batch_size)
-            batches = input_pipeline.epoch_batches(train_source, config.batch_size,
+            rows = distributed.process_rows(compiled.data, config.input.batch_size)
+            batches = input_pipeline.epoch_batches(train_source, config.input.batch_size,
                                                    seed=config.seed, epoch=epoch, rows=rows)
             losses_sum = jnp.zeros(())
-            bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.num_epochs}",
+            bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.train.num_epochs}",
                        disable=not progress or not distributed.is_primary(), leave=False)
             previous = None  # checked one step late, so the host never waits on the device
             for i in bar:
                 batch = distributed.put_process_rows(_model_batch(batches[i]), compiled.data,
-                                                     config.batch_size)
+                                                     config.input.batch_size)
                 state, m = compiled.train(state, batch)
                 losses_sum = losses_sum + m["loss"]
                 if previous is not None:
@@ -526,12 +552,12 @@ def train_and_evaluate(
                 "epoch": epoch + 1,
                 "step": int(state.step),
                 "train_mse": train_loss,
-                "train_samples_per_s": steps_per_epoch * config.batch_size / elapsed,
+                "train_samples_per_s": steps_per_epoch * config.input.batch_size / elapsed,
                 "epoch_seconds": elapsed,
             }
-            last = epoch + 1 == int(config.num_epochs)
-            if val_source is not None and ((epoch + 1) % config.eval_every_epochs == 0 or last):
-                val = evaluate(state.params, val_source, compiled, config.eval_batch_size)
+            last = epoch + 1 == int(config.train.num_epochs)
+            if val_source is not None and ((epoch + 1) % config.eval.every_epochs == 0 or last):
+                val = evaluate(state.params, val_source, compiled, config.eval.batch_size)
                 record.update({"val_mse": val["mse"], "val_mae": val["mae"]})
                 if not np.isfinite(val["mse"]):
                     _raise_non_finite("the validation MSE", val["mse"], epoch + 1, int(state.step),
@@ -542,7 +568,7 @@ def train_and_evaluate(
                 best_manager.save(int(state.step), force=True,
                                   args=ocp.args.StandardSave(checkpoints.state_tree(state)))
                 best_manager.wait_until_finished()
-            if (epoch + 1) % config.checkpoint_every_epochs == 0 or last:
+            if (epoch + 1) % config.train.checkpoint_every_epochs == 0 or last:
                 manager.save(int(state.step),
                              args=ocp.args.StandardSave(checkpoints.state_tree(state)))
                 manager.wait_until_finished()

@@ -35,10 +35,10 @@ def config():
     c = default.get_config()
     c.model.encoder_channels = (16, 16, 32)
     c.model.encoder_features = 32
-    c.batch_size = 32
-    c.eval_batch_size = 64
-    c.num_epochs = 3
-    c.learning_rate = 3e-3
+    c.input.batch_size = 32
+    c.eval.batch_size = 64
+    c.train.num_epochs = 3
+    c.train.learning_rate = 3e-3
     return c
 
 

@@ -50,7 +50,7 @@ def make_predictor(workdir: Path, schedule_name: str = "webcam_clipart") -> Path
     schedule = schedule_lib.preset(schedule_name)
     net = model_lib.create_model(config, schedule.num_timestamps)
     params = model_lib.init_params(net, jax.random.key(0),
-                                   time_encoding.num_features(config.time_fields))
+                                   time_encoding.num_features(config.model.time_fields))
     workdir.mkdir(parents=True, exist_ok=True)
     (workdir / "config.json").write_text(json.dumps(config.to_dict(), default=list))
     (workdir / "schedule.json").write_text(json.dumps(schedule.to_dict()))

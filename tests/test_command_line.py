@@ -142,7 +142,7 @@ def test_map_summarization_help_states_its_own_default_size():
 
     assert "(default small)" in _options(_help("experiments.map_summarization"))["--size"]
     config, workdir = parse([])
-    assert DEFAULT_SIZE == "small" and config.data_config == "synthetic_small"
+    assert DEFAULT_SIZE == "small" and config.input.data_config == "synthetic_small"
     assert workdir.name == "map_summarization_small"
 
 

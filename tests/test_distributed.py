@@ -88,7 +88,7 @@ def _curve(workdir: Path) -> list[dict]:
 def test_two_processes_train_as_one_and_resume_after_both_are_killed(tmp_path):
     # The reference: one process, the same global batch split over its 2 devices.
     config = worker.config()
-    config.num_devices = 2
+    config.train.num_devices = 2
     train_source, val_source = worker.sources()
     single = train.train_and_evaluate(config, tmp_path / "single", train_source, val_source,
                                       progress=False)

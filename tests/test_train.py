@@ -15,16 +15,27 @@ from rp_jax.datasets import learnable_task
 SCHEDULE = schedule_lib.preset("webcam_clipart")
 
 
+def _set(config, name: str, value) -> None:
+    """Set a field by its dotted path, or by its name before the grouping (``num_epochs``)."""
+    *groups, leaf = default.FLAT_TO_GROUPED.get(name, name).split(".")
+    node = config
+    for g in groups:
+        node = node[g]
+    node[leaf] = value
+
+
 def small_config(**overrides):
+    """A small model's config; ``overrides`` by field name (``num_epochs=1``, as
+    ``default.FLAT_TO_GROUPED`` places it) or by group (``train={...}`` is not taken)."""
     c = default.get_config()
     c.model.encoder_channels = (16, 16, 32)
     c.model.encoder_features = 32
-    c.batch_size = 32
-    c.eval_batch_size = 64
-    c.num_epochs = 3
-    c.learning_rate = 3e-3
+    c.input.batch_size = 32
+    c.eval.batch_size = 64
+    c.train.num_epochs = 3
+    c.train.learning_rate = 3e-3
     for k, v in overrides.items():
-        setattr(c, k, v)
+        _set(c, k, v)
     return c
 
 
@@ -58,8 +69,8 @@ def test_train_step_compiles_once():
 
 def test_learns_the_task_far_below_the_per_slot_mean(tmp_path):
     config = default.get_config()
-    config.num_epochs = 8
-    config.batch_size = 128
+    config.train.num_epochs = 8
+    config.input.batch_size = 128
     rec_train = learnable_task.make_learnable_task(3000, SCHEDULE, seed=0)
     rec_val = learnable_task.make_learnable_task(500, SCHEDULE, seed=1)
     train.train_and_evaluate(config, tmp_path, ip.ArraySource(rec_train, ip.MODEL_KEYS),
@@ -100,7 +111,8 @@ def test_refuses_a_workdir_of_another_config(tmp_path):
     src = task(64, 0)
     train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
     with pytest.raises(train.WorkdirMismatchError,
-                       match=r"different config \(learning_rate: 0\.003 there, 1\.0 asked\)"):
+                       match=r"different config \(train\.learning_rate: 0\.003 there, "
+                       r"1\.0 asked\)"):
         train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1.0), tmp_path, src,
                                  progress=False)
     model = small_config(num_epochs=1)
@@ -113,9 +125,9 @@ def _experiment_config(**runtime):
     """small_config with an experiment's data and evaluation fields (issue 15, item 6)."""
     c = small_config(num_epochs=1)
     with c.unlocked():
-        c.data_dir, c.synthetic_root, c.knn_k = "/data/a", "", 10
+        c.input.data_dir, c.input.synthetic_root, c.eval.knn_k = "/data/a", "", 10
     for k, v in runtime.items():
-        setattr(c, k, v)
+        _set(c, k, v)
     return c
 
 
@@ -134,38 +146,93 @@ def test_runtime_fields_may_change_between_runs_of_one_workdir(tmp_path):
                                 train.params_to_numpy(first.params))
 
 
-def test_every_identity_field_is_a_field_of_the_default_config():
-    defaults = set(default.get_config().keys()) | {"data_config", "manual_dir",
-                                                    "validation_fraction"}
-    assert set(train.MODEL_FIELDS + train.DATA_FIELDS) <= defaults
+def test_every_identity_field_is_a_field_of_the_experiments_config():
+    from experiments.sec4a import config as sec4a_config
+
+    config = sec4a_config.get_config("tiny")
+    missing = object()
+    for field in train.MODEL_FIELDS + train.DATA_FIELDS:
+        assert train.field_value(config, field, missing) is not missing, field
+    # The default (learnable task) config has every identity field but the experiments' data.
+    experiment_only = {"input.data_config", "input.manual_dir", "input.validation_fraction"}
+    for field in set(train.MODEL_FIELDS + train.DATA_FIELDS) - experiment_only:
+        assert train.field_value(default.get_config(), field, missing) is not missing, field
+
+
+def test_every_field_before_the_grouping_has_one_home():
+    from experiments.sec4a import config as sec4a_config
+
+    config = sec4a_config.get_config("tiny")
+    missing = object()
+    for old, new in default.FLAT_TO_GROUPED.items():
+        assert train.field_value(config, new, missing) is not missing, (old, new)
+    assert len(set(default.FLAT_TO_GROUPED.values())) == len(default.FLAT_TO_GROUPED)
+
+
+def test_a_flat_config_json_is_read_in_groups():
+    flat = {"seed": 3, "num_epochs": 2, "batch_size": 8, "eval_batch_size": 16,
+            "augment": {"flip": True}, "time_fields": "day_of_year",
+            "model": {"encoder_features": 16}, "knn_k": 4, "unknown_field": 1}
+    grouped = default.upgrade(flat)
+    assert grouped == {"seed": 3, "train": {"num_epochs": 2},
+                       "input": {"batch_size": 8, "augment": {"flip": True}},
+                       "eval": {"batch_size": 16, "knn_k": 4},
+                       "model": {"encoder_features": 16, "time_fields": "day_of_year"},
+                       "unknown_field": 1}
+    assert default.upgrade(grouped) == grouped  # already grouped: unchanged
+
+
+def test_a_workdir_written_before_the_grouping_resumes(tmp_path):
+    import json
+
+    src = task(64, 0)
+    first = train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
+    grouped = json.loads((tmp_path / "config.json").read_text())
+    flat = {k: dict(v) if isinstance(v, dict) else v for k, v in grouped.items()
+            if k not in ("input", "train", "eval")}
+    for group in ("input", "train", "eval"):
+        for k, v in grouped[group].items():
+            old = next(o for o, n in default.FLAT_TO_GROUPED.items() if n == f"{group}.{k}")
+            flat[old] = v
+    flat["time_fields"] = flat["model"].pop("time_fields")
+    flat["time_encoding"] = flat["model"].pop("time_encoding")
+    (tmp_path / "config.json").write_text(json.dumps(flat))
+    assert default.upgrade(flat) == grouped
+    again = train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)
+    assert int(again.step) == int(first.step)  # recognised as the same run: nothing retrained
+    with pytest.raises(train.WorkdirMismatchError, match=r"train\.learning_rate: 0\.003 there"):
+        train.check_workdir(tmp_path, small_config(num_epochs=1, learning_rate=1e-2))
 
 
 @pytest.mark.parametrize("field, value, expected", [
-    ("batch_size", 0, r"config\.batch_size=0: expected an integer >= 1"),
-    ("num_epochs", 0, r"config\.num_epochs=0: expected an integer >= 1"),
-    ("eval_batch_size", -8, r"config\.eval_batch_size=-8: expected an integer >= 1"),
-    ("time_encoding", "bogus",
-     r"config\.time_encoding='bogus': expected one of \['raw', 'cyclic'\]"),
-    ("time_fields", "hours", r"config\.time_fields='hours': expected one of"),
-    ("schedule", "weekly", r"config\.schedule='weekly': expected one of"),
-    ("learning_rate", -1.0, r"config\.learning_rate=-1\.0: expected a finite number > 0"),
-    ("learning_rate", float("inf"), r"config\.learning_rate=inf"),
-    ("warmup_epochs", -1.0, r"config\.warmup_epochs=-1\.0: expected a finite number >= 0"),
-    ("grad_clip", 0.0, r"config\.grad_clip=0\.0: expected a finite number > 0"),
-    ("weight_decay", float("nan"), r"config\.weight_decay=nan"),
+    ("input.batch_size", 0, r"config\.input\.batch_size=0: expected an integer >= 1"),
+    ("train.num_epochs", 0, r"config\.train\.num_epochs=0: expected an integer >= 1"),
+    ("eval.batch_size", -8, r"config\.eval\.batch_size=-8: expected an integer >= 1"),
+    ("model.time_encoding", "bogus",
+     r"config\.model\.time_encoding='bogus': expected one of \['raw', 'cyclic'\]"),
+    ("model.time_fields", "hours", r"config\.model\.time_fields='hours': expected one of"),
+    ("input.schedule", "weekly", r"config\.input\.schedule='weekly': expected one of"),
+    ("train.learning_rate", -1.0,
+     r"config\.train\.learning_rate=-1\.0: expected a finite number > 0"),
+    ("train.learning_rate", float("inf"), r"config\.train\.learning_rate=inf"),
+    ("train.warmup_epochs", -1.0,
+     r"config\.train\.warmup_epochs=-1\.0: expected a finite number >= 0"),
+    ("train.grad_clip", 0.0, r"config\.train\.grad_clip=0\.0: expected a finite number > 0"),
+    ("train.weight_decay", float("nan"), r"config\.train\.weight_decay=nan"),
     ("seed", -1, r"config\.seed=-1: expected an integer >= 0"),
-    ("num_devices", -1, r"config\.num_devices=-1: expected an integer >= 0"),
-    ("eval_every_epochs", 0, r"config\.eval_every_epochs=0"),
-    ("checkpoint_every_epochs", 0, r"config\.checkpoint_every_epochs=0"),
-    ("max_checkpoints_to_keep", 0, r"config\.max_checkpoints_to_keep=0"),
+    ("train.num_devices", -1, r"config\.train\.num_devices=-1: expected an integer >= 0"),
+    ("eval.every_epochs", 0, r"config\.eval\.every_epochs=0"),
+    ("train.checkpoint_every_epochs", 0, r"config\.train\.checkpoint_every_epochs=0"),
+    ("train.max_checkpoints_to_keep", 0, r"config\.train\.max_checkpoints_to_keep=0"),
     ("model.encoder_channels", (), r"config\.model\.encoder_channels=\(\): expected a non-empty"),
     ("model.encoder_features", 0, r"config\.model\.encoder_features=0"),
     ("model.gem_init_p", 0.0, r"config\.model\.gem_init_p=0\.0: expected a finite number > 0"),
     ("model.dtype", "float16", r"config\.model\.dtype='float16': expected one of"),
-    ("augment.brightness", -0.1, r"config\.augment\.brightness=-0\.1"),
-    ("augment.contrast", 1.0, r"config\.augment\.contrast=1\.0: expected a number in \[0, 1\)"),
-    ("augment.colour", 2.0, r"config\.augment\.colour=2\.0"),
-    ("augment.zoom", -1.0, r"config\.augment\.zoom=-1\.0"),
+    ("input.augment.brightness", -0.1, r"config\.input\.augment\.brightness=-0\.1"),
+    ("input.augment.contrast", 1.0,
+     r"config\.input\.augment\.contrast=1\.0: expected a number in \[0, 1\)"),
+    ("input.augment.colour", 2.0, r"config\.input\.augment\.colour=2\.0"),
+    ("input.augment.zoom", -1.0, r"config\.input\.augment\.zoom=-1\.0"),
 ])
 def test_validate_config_names_the_field_its_value_and_the_range(field, value, expected):
     config = small_config()
@@ -266,7 +333,7 @@ def test_keep_best_saves_the_best_validation_epoch(tmp_path):
     from rp_jax import predict
 
     config = small_config(keep_best=True)
-    config.augment.brightness, config.augment.flip = 0.1, True
+    config.input.augment.brightness, config.input.augment.flip = 0.1, True
     src, val = task(256, 0), task(64, 1)
     train.train_and_evaluate(config, tmp_path, src, val, progress=False)
     lines = (tmp_path / "metrics.jsonl").read_text().splitlines()
@@ -295,7 +362,7 @@ def test_refuses_another_epoch_count_once_trained(tmp_path, asked):
     train.train_and_evaluate(small_config(num_epochs=2), tmp_path, src, progress=False)
     before = (tmp_path / "config.json").read_text()
     with pytest.raises(train.WorkdirMismatchError,
-                       match=rf"trained with num_epochs=2, asked num_epochs={asked}"
+                       match=rf"trained with train\.num_epochs=2, asked train\.num_epochs={asked}"
                              r".*new --workdir"):
         train.train_and_evaluate(small_config(num_epochs=asked), tmp_path, src, progress=False)
     assert (tmp_path / "config.json").read_text() == before  # still says what was trained
@@ -309,7 +376,8 @@ def test_epoch_count_may_change_before_anything_is_trained(tmp_path):
 
 
 def test_nan_learning_rate_is_refused_before_anything_is_written(tmp_path):
-    with pytest.raises(train.ConfigError, match=r"config\.learning_rate=nan: expected a finite"):
+    with pytest.raises(train.ConfigError,
+                       match=r"config\.train\.learning_rate=nan: expected a finite"):
         train.train_and_evaluate(small_config(learning_rate=float("nan")), tmp_path, task(64, 0),
                                  progress=False)
     assert not tmp_path.joinpath("config.json").exists()

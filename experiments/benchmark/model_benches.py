@@ -54,11 +54,11 @@ def _model_config(size: dict, variant: Variant, batch: int):
     from rp_jax.configs import default
 
     config = default.get_config()
-    config.batch_size = batch
-    config.eval_batch_size = batch
-    config.num_devices = variant.num_devices
+    config.input.batch_size = batch
+    config.eval.batch_size = batch
+    config.train.num_devices = variant.num_devices
     config.model.dtype = variant.dtype
-    config.schedule = size["schedule"]
+    config.input.schedule = size["schedule"]
     return config
 
 
@@ -66,7 +66,7 @@ def _records(size: dict, config) -> dict[str, np.ndarray]:
     from rp_jax import schedule as schedule_lib
     from rp_jax.datasets.learnable_task import make_learnable_task
 
-    sched = schedule_lib.preset(config.schedule)
+    sched = schedule_lib.preset(config.input.schedule)
     rec = make_learnable_task(size["num_records"], sched, seed=0)
     rec["mask"] = np.ones(len(rec["patch"]), bool)
     return rec
@@ -114,7 +114,7 @@ class JaxTrainBench(ModelBench):
         from rp_jax import platform, train
 
         config, records, state = _fresh_model(self.size, self.variant, self.batch)
-        mesh = platform.make_mesh(config.num_devices)
+        mesh = platform.make_mesh(config.train.num_devices)
         # FLOPs of one step from XLA's cost analysis, on one device without sharding.
         lowered = jax.jit(lambda s, b: train.train_step(s, b, config)).lower(
             state, self._first(records)
@@ -166,8 +166,8 @@ class JaxPredictBench(ModelBench):
                 records["minute"],
                 records["day"],
                 records["month"],
-                fields=config.time_fields,
-                encoding=config.time_encoding,
+                fields=config.model.time_fields,
+                encoding=config.model.time_encoding,
             ),
             np.float32,
         )
@@ -181,11 +181,11 @@ class JaxPredictBench(ModelBench):
         flops = _cost_flops(jax.jit(fn).lower(params, *self.inputs[0]).compile())
         if self.variant.predictor_api:
             self.predictor = predict.Predictor(
-                params, config, schedule_lib.preset(config.schedule), batch_size=self.batch
+                params, config, schedule_lib.preset(config.input.schedule), batch_size=self.batch
             )
             self.call = lambda x, xy, t: self.predictor(x, xy, t)
         else:
-            mesh = platform.make_mesh(config.num_devices)
+            mesh = platform.make_mesh(config.train.num_devices)
             data, rep = NamedSharding(mesh, P("data")), NamedSharding(mesh, P())
             jitted = jax.jit(fn, in_shardings=(rep, data, data, data), out_shardings=data)
             self.params = jax.device_put(params, rep)
@@ -319,7 +319,7 @@ class TorchBench(ModelBench):
         self.batches = _batches(records, self.batch, self.steps)
         if self.stage == "train":
             self.optimizer = tr.make_optimizer(
-                self.module, config.learning_rate, config.weight_decay
+                self.module, config.train.learning_rate, config.train.weight_decay
             )
         else:
             self.module.eval()

@@ -12,7 +12,7 @@ from experiments.sec4a import config as sec4a_config
 
 def get_config(size: str = "full"):
     config = sec4a_config.get_config(size)
-    config.dataset = "cmu_seasons"
-    config.schedule = "cmu_seasons"  # T = 12
-    config.time_fields = "day_of_year"  # d = 2 (day, month)
+    config.input.dataset = "cmu_seasons"
+    config.input.schedule = "cmu_seasons"  # T = 12
+    config.model.time_fields = "day_of_year"  # d = 2 (day, month)
     return config

@@ -26,12 +26,12 @@ from experiments.sec4a import config as sec4a_config
 
 def get_config(size: str = "small") -> ml_collections.ConfigDict:
     config = sec4a_config.get_config(size)
-    config.dataset = "robotcar"
-    config.schedule = "robotcar"  # T = 9, 9:00 ... 17:00
-    config.time_fields = "time_of_day"  # d = 2 (hour, minute)
+    config.input.dataset = "robotcar"
+    config.input.schedule = "robotcar"  # T = 9, 9:00 ... 17:00
+    config.model.time_fields = "time_of_day"  # d = 2 (hour, minute)
     # RobotCar small has ~59,000 training points (9 traversals x 8 viewpoints): 3 epochs
     # (~1,250 steps of 128) keep the whole command near 15 minutes on 2 cores.
-    config.num_epochs = {"tiny": 2, "small": 3, "full": 5}[size]
+    config.train.num_epochs = {"tiny": 2, "small": 3, "full": 5}[size]
 
     m = config.map = ml_collections.ConfigDict()
     m.synthetic_size = size  # size of the synthetic CMU world
@@ -146,18 +146,19 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
         except ValueError:
             expect(False, "query_dates", f"ISO dates such as ('2011-03-04',); {text!r} is not one")
 
-    real = config.data_config == "real"
+    real = config.input.data_config == "real"
     if real:
         for field, path in (("robotcar_dir", m.robotcar_dir
-                             or Path(config.manual_dir or ".") / "robotcar"),
-                            ("root", m.root or Path(config.manual_dir or ".") / "cmu_seasons")):
+                             or Path(config.input.manual_dir or ".") / "robotcar"),
+                            ("root",
+                             m.root or Path(config.input.manual_dir or ".") / "cmu_seasons")):
             if not Path(path).is_dir():
                 raise train.ConfigError(
                     f"config.map.{field}: {path} is not a folder; --manual-dir DIR expects the "
                     "real downloads in DIR/robotcar and DIR/cmu_seasons (or set "
                     "--config.map.robotcar_dir and --config.map.root)")
     if real or m.root:
-        root = Path(m.root or Path(config.manual_dir) / "cmu_seasons")
+        root = Path(m.root or Path(config.input.manual_dir) / "cmu_seasons")
         expect(isinstance(m.slice, int) and (root / f"slice{m.slice}").is_dir(), "slice",
                f"a slice of {root}; it has "
                f"{sorted(p.name for p in root.glob('slice*') if p.is_dir()) or 'none'}")

@@ -162,12 +162,12 @@ def _cmu_root(config, seed: int) -> Path:
     m = config.map
     if m.root:
         return Path(m.root)
-    if config.data_config == "real":
-        return Path(config.manual_dir) / "cmu_seasons"
+    if config.input.data_config == "real":
+        return Path(config.input.manual_dir) / "cmu_seasons"
     from rp_jax.datasets import builder as builder_lib
     from rp_jax.datasets import loading
 
-    data_dir = Path(config.data_dir) if config.data_dir else loading.default_data_dir()
+    data_dir = Path(config.input.data_dir) if config.input.data_dir else loading.default_data_dir()
     return builder_lib.synthetic_root(data_dir.absolute(), "cmu_seasons", m.synthetic_size, seed)
 
 
@@ -212,7 +212,7 @@ def evaluate_world(
     tic = time.perf_counter()
     dates = [dt.date.fromisoformat(d) for d in m.query_dates] or None
     root = _cmu_root(config, seed)
-    if config.data_config != "real" and not m.root:
+    if config.input.data_config != "real" and not m.root:
         from rp_jax.sources.synthetic.map_layout import (
             available_query_dates,
             ensure_cmu_map_layout,
@@ -518,7 +518,7 @@ def run(
         )
         timings["cmu_rp_dataset_and_training_s"] = time.perf_counter() - tic
     fingerprint = _fingerprint(config, {k: v.params for k, v in sorted(predictors.items())})
-    seeds = [0] if config.data_config == "real" or m.root else [int(s) for s in m.seeds]
+    seeds = [0] if config.input.data_config == "real" or m.root else [int(s) for s in m.seeds]
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()
@@ -567,7 +567,7 @@ def run(
         else None,
         "slice": int(m.slice),
         "dataset": {
-            "rp": f"robotcar/{config.data_config}",
+            "rp": f"robotcar/{config.input.data_config}",
             "map": [s["root"] for s in per_seed],
         },
     }

@@ -129,7 +129,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         f"`{metrics['dataset']['rp']}`: T = {len(sched)} timestamps {sched[0]}...{sched[-1]}, "
         f"{rp['train_points']} training points "
         f"({rp['train_viewpoints']} viewpoints), {rp['validation_points']} validation points, "
-        f"{config.num_epochs} epochs, time input `{config.time_fields}`.",
+        f"{config.train.num_epochs} epochs, time input `{config.model.time_fields}`.",
         f"- Maps: Extended CMU Seasons slice {m.slice} reference model on world seeds "
         f"{metrics['seeds']}: "
         + "; ".join(

@@ -2,7 +2,7 @@
 
 The paper trains RP on 9 RobotCar traversals, one per hourly timestamp 9:00-17:00 (T = 9,
 M = 1), with the time of day as input (d = 2). ``train_predictor`` builds (or reuses) the
-``robotcar`` TFDS dataset, holds out ``config.validation_fraction`` of its viewpoints for
+``robotcar`` TFDS dataset, holds out ``config.input.validation_fraction`` of its viewpoints for
 validation and trains in ``<workdir>/rp`` (a finished run there is reused; an interrupted
 one resumes). Training lives here, beside the driver, and never in ``rp_jax.mapsum``.
 """
@@ -27,14 +27,16 @@ def rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
     cfg = copy.deepcopy(config)
     with cfg.unlocked():
         del cfg["map"]
-    if cfg.data_config == "real":
-        cfg.manual_dir = config.map.robotcar_dir or str(Path(config.manual_dir) / "robotcar")
+    if cfg.input.data_config == "real":
+        cfg.input.manual_dir = (config.map.robotcar_dir
+                                or str(Path(config.input.manual_dir) / "robotcar"))
     return cfg
 
 
 def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
     """Hold out validation viewpoints of ``cols``, train in ``rp_dir`` (resumes), load it."""
-    val_mask = experiment.split_validation(cols["viewpoint"], cfg.validation_fraction, cfg.seed)
+    val_mask = experiment.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
+                                           cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
     val_cols = {k: v[val_mask] for k, v in cols.items()}
     train.train_and_evaluate(
@@ -42,7 +44,7 @@ def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
         rp_dir,
         experiment.model_source(train_cols),
         experiment.model_source(val_cols) if val_mask.any() else None,
-        schedule=schedule_lib.preset(cfg.schedule),
+        schedule=schedule_lib.preset(cfg.input.schedule),
         progress=progress,
     )
     counts = {
@@ -58,7 +60,7 @@ def _train_columns(cfg, rp_dir: Path) -> dict:
     data = experiment.build_dataset(cfg, rp_dir)
     cols = data.get("train")
     if cols is None or len(cols["label"]) == 0:
-        raise ValueError(f"{cfg.dataset}/{cfg.data_config}: no training records")
+        raise ValueError(f"{cfg.input.dataset}/{cfg.input.data_config}: no training records")
     return cols
 
 
@@ -66,7 +68,7 @@ def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress
     """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes); (predictor, counts)."""
     cfg = rp_config(config)
     cols = _train_columns(cfg, rp_dir)
-    return _fit(cfg, rp_dir, cols, batch_size=config.eval_batch_size, progress=progress)
+    return _fit(cfg, rp_dir, cols, batch_size=config.eval.batch_size, progress=progress)
 
 
 def cmu_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -78,12 +80,12 @@ def cmu_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
     camera on 9 single days (an hour is one day's weather there).
     """
     cfg = rp_config(config)
-    cfg.dataset = "cmu_seasons"
-    cfg.schedule = "cmu_seasons"
-    cfg.time_fields = "hour_of_year"
-    cfg.num_epochs = config.map.cmu_rp_epochs
-    if cfg.data_config == "real":
-        cfg.manual_dir = config.map.root or str(Path(config.manual_dir) / "cmu_seasons")
+    cfg.input.dataset = "cmu_seasons"
+    cfg.input.schedule = "cmu_seasons"
+    cfg.model.time_fields = "hour_of_year"
+    cfg.train.num_epochs = config.map.cmu_rp_epochs
+    if cfg.input.data_config == "real":
+        cfg.input.manual_dir = config.map.root or str(Path(config.input.manual_dir) / "cmu_seasons")
     return cfg
 
 
@@ -111,7 +113,7 @@ def train_cmu_predictor(
         cfg,
         rp_dir,
         {k: v[keep] for k, v in cols.items()},
-        batch_size=config.eval_batch_size,
+        batch_size=config.eval.batch_size,
         progress=progress,
     )
     counts["train_slices"] = sorted(set(slice_of[keep].tolist()))

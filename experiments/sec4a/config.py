@@ -17,22 +17,23 @@ def get_config(size: str = "full") -> ml_collections.ConfigDict:
     if size not in DATA_CONFIGS:
         raise ValueError(f"size must be one of {sorted(DATA_CONFIGS)}, got {size!r}")
     config = default.get_config()
-    config.dataset = ""  # TFDS builder name (rp_jax/datasets/<name>), set by the experiment
-    config.data_config = DATA_CONFIGS[size]  # synthetic size, or "real" with --manual-dir
-    config.data_dir = ""  # TFDS data directory (--data-dir; "" = loading.default_data_dir())
-    config.manual_dir = ""  # the real download (--manual-dir)
-    config.synthetic_root = ""  # where the synthetic layout is rendered ("" = beside data_dir)
-    config.validation_fraction = 0.15  # share of training viewpoints held out for validation
-    config.knn_k = 10  # neighbours of the descriptor-kNN baseline
-    config.num_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
-    config.batch_size = {"tiny": 32, "small": 128, "full": 256}[size]
-    config.eval_batch_size = 256
+    i = config.input
+    i.dataset = ""  # TFDS builder name (rp_jax/datasets/<name>), set by the experiment
+    i.data_config = DATA_CONFIGS[size]  # synthetic size, or "real" with --manual-dir
+    i.data_dir = ""  # TFDS data directory (--data-dir; "" = loading.default_data_dir())
+    i.manual_dir = ""  # the real download (--manual-dir)
+    i.synthetic_root = ""  # where the synthetic layout is rendered ("" = beside data_dir)
+    i.validation_fraction = 0.15  # share of training viewpoints held out for validation
+    i.batch_size = {"tiny": 32, "small": 128, "full": 256}[size]
     # Few training viewpoints (6-7 scenes): without these the predictor learns each scene's
     # colours and loses to the per-slot mean on a held-out scene (measured, full Webcam).
-    config.augment.brightness = 0.15
-    config.augment.contrast = 0.25
-    config.augment.flip = True
-    config.keep_best = True  # model selection on the validation viewpoints
+    i.augment.brightness = 0.15
+    i.augment.contrast = 0.25
+    i.augment.flip = True
+    config.train.num_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
+    config.train.keep_best = True  # model selection on the validation viewpoints
+    config.eval.batch_size = 256
+    config.eval.knn_k = 10  # neighbours of the descriptor-kNN baseline
     return config
 
 
@@ -51,29 +52,32 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
 
     def expect(ok: bool, field: str, expected: str) -> None:
         if not ok:
-            raise train.ConfigError(f"config.{field}={config.get(field)!r}: expected {expected}")
+            raise train.ConfigError(
+                f"config.{field}={train.field_value(config, field)!r}: expected {expected}")
 
     train.validate_config(config)
     train.check_devices(config)  # batch_size=33 on 2 devices failed after the build
-    expect(config.dataset in DATASET_NAMES, "dataset", f"one of {list(DATASET_NAMES)}")
-    expect(config.data_config in CONFIG_NAMES, "data_config", f"one of {list(CONFIG_NAMES)}")
+    i = config.input
+    expect(i.dataset in DATASET_NAMES, "input.dataset", f"one of {list(DATASET_NAMES)}")
+    expect(i.data_config in CONFIG_NAMES, "input.data_config", f"one of {list(CONFIG_NAMES)}")
     # The records are labelled at the dataset's own timestamps: another schedule has another T.
-    expect(config.schedule == config.dataset, "schedule",
-           f"{config.dataset!r}, the timestamps {config.dataset}'s records are labelled at "
-           f"(T = {schedule_lib.preset(config.dataset).num_timestamps})")
-    fraction = config.validation_fraction
+    expect(i.schedule == i.dataset, "input.schedule",
+           f"{i.dataset!r}, the timestamps {i.dataset}'s records are labelled at "
+           f"(T = {schedule_lib.preset(i.dataset).num_timestamps})")
+    fraction = i.validation_fraction
     expect(isinstance(fraction, (int, float)) and not isinstance(fraction, bool)
-           and 0 <= fraction < 1, "validation_fraction",
+           and 0 <= fraction < 1, "input.validation_fraction",
            "a number in [0, 1): the share of training viewpoints held out (0: none)")
-    expect(isinstance(config.knn_k, int) and not isinstance(config.knn_k, bool)
-           and config.knn_k >= 1, "knn_k", "an integer >= 1")
-    if config.data_config == "real":
-        expect(bool(config.manual_dir), "manual_dir",
+    knn_k = config.eval.knn_k
+    expect(isinstance(knn_k, int) and not isinstance(knn_k, bool) and knn_k >= 1,
+           "eval.knn_k", "an integer >= 1")
+    if i.data_config == "real":
+        expect(bool(i.manual_dir), "input.manual_dir",
                "the folder of the real download (--manual-dir) with data_config 'real'")
-    if config.manual_dir:
-        expect(Path(config.manual_dir).is_dir(), "manual_dir", "an existing folder")
+    if i.manual_dir:
+        expect(Path(i.manual_dir).is_dir(), "input.manual_dir", "an existing folder")
     for field in ("data_dir", "synthetic_root"):  # created if absent
-        expect(not config[field] or not Path(config[field]).exists()
-               or Path(config[field]).is_dir(), field, "a folder (created if absent), not a file")
+        expect(not i[field] or not Path(i[field]).exists() or Path(i[field]).is_dir(),
+               f"input.{field}", "a folder (created if absent), not a file")
     if workdir is not None:
         train.check_workdir(workdir, config)

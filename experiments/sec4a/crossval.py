@@ -24,6 +24,7 @@ import numpy as np
 from experiments.sec4a import experiment
 from rp_jax import evaluation, files, predict, train
 from rp_jax import schedule as schedule_lib
+from rp_jax.configs import default as configs_default
 from rp_jax.progress import bar as tqdm  # the one progress helper
 
 __all__ = ["viewpoint_folds", "cross_validate", "summarize", "markdown"]
@@ -127,15 +128,16 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     config = copy.deepcopy(config)
-    config.keep_best = False
-    config.validation_fraction = 0.0
-    schedule = schedule_lib.preset(config.schedule)
+    config.train.keep_best = False
+    config.input.validation_fraction = 0.0
+    schedule = schedule_lib.preset(config.input.schedule)
     groups = viewpoint_folds(train_columns["viewpoint"], num_folds, config.seed)
     path = workdir / "crossval.json"
     done = {}
     if path.exists():
         old = experiment.read_json(path)
-        if old.get("config") != json.loads(json.dumps(config.to_dict(), default=list)):
+        asked = json.loads(json.dumps(config.to_dict(), default=list))
+        if configs_default.upgrade(old.get("config") or {}) != asked:
             raise ValueError(f"{path} holds a cross-validation with another config; use a new "
                              "--workdir or delete it")
         done = old.get("folds", {})

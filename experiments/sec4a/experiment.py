@@ -3,8 +3,8 @@
 ``run(config, workdir)`` is what ``python -m experiments.webcam_clipart`` and
 ``python -m experiments.cmu_seasons`` call (and what notebooks call): it
 
-1. builds (or reuses) the TFDS dataset ``config.dataset``/``config.data_config``;
-2. holds out ``config.validation_fraction`` of the *training viewpoints* as a validation
+1. builds (or reuses) the TFDS dataset ``config.input.dataset``/``config.input.data_config``;
+2. holds out ``config.input.validation_fraction`` of the *training viewpoints* as a validation
    split (model selection never sees the test viewpoints);
 3. trains the predictor (``rp_jax.train``; resumes if the workdir has checkpoints);
 4. predicts the test split and the baselines of ``rp_jax.evaluation``;
@@ -25,6 +25,7 @@ import numpy as np
 from experiments import provenance
 from rp_jax import categories, evaluation, files
 from rp_jax import schedule as schedule_lib
+from rp_jax.configs import default as configs_default
 
 __all__ = [
     "run",
@@ -66,23 +67,24 @@ def build_dataset(config, workdir: Path) -> dict:
     from rp_jax.datasets import loading
 
     kwargs = {}
-    if config.get("synthetic_root"):
-        kwargs["synthetic_root"] = config.synthetic_root
+    if config.input.get("synthetic_root"):
+        kwargs["synthetic_root"] = config.input.synthetic_root
     builder = loading.get_builder(
-        config.dataset, config=config.data_config, data_dir=config.data_dir or None, **kwargs
+        config.input.dataset, config=config.input.data_config,
+        data_dir=config.input.data_dir or None, **kwargs
     )
     from rp_jax.datasets import provenance
 
     # Builds unless built; a real dataset built from another download is refused.
-    provenance.prepare(builder, config.manual_dir or None)
+    provenance.prepare(builder, config.input.manual_dir or None)
     keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
     return {
         split: loading.load_columns(
-            config.dataset,
+            config.input.dataset,
             split,
             keys=keys,
-            config=config.data_config,
-            data_dir=config.data_dir or None,
+            config=config.input.data_config,
+            data_dir=config.input.data_dir or None,
         )
         for split in builder.info.splits
     }
@@ -105,7 +107,7 @@ def rp_predictions(rp, config, columns: dict) -> np.ndarray:
 
     times = np.asarray(time_encoding.encode(
         columns["hour"], columns["minute"], columns["day"], columns["month"],
-        fields=config.time_fields, encoding=config.time_encoding))
+        fields=config.model.time_fields, encoding=config.model.time_encoding))
     return np.asarray(rp(columns["patch"], columns["xy_normalized"], times))
 
 
@@ -118,7 +120,7 @@ def baseline_predictions(config, train_cols: dict, columns: dict) -> dict[str, n
             tr_label, tr_mask, train_cols["slot"], columns["slot"]
         ),
         "descriptor_knn": evaluation.descriptor_knn(
-            train_cols["descriptor"], tr_label, tr_mask, columns["descriptor"], k=config.knn_k
+            train_cols["descriptor"], tr_label, tr_mask, columns["descriptor"], k=config.eval.knn_k
         ),
     }
 
@@ -139,7 +141,7 @@ def run(
     validate(config, workdir)  # before the dataset is built: a bad field fails in a second
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
-    schedule = schedule_lib.preset(config.schedule)
+    schedule = schedule_lib.preset(config.input.schedule)
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
@@ -147,15 +149,17 @@ def run(
     timings["dataset_s"] = time.perf_counter() - t0
     if "train" not in data or "test" not in data:
         raise ValueError(
-            f"{config.dataset}/{config.data_config} needs train and test splits, has {sorted(data)}"
+            f"{config.input.dataset}/{config.input.data_config} needs train and test splits, "
+            f"has {sorted(data)}"
         )
     full_train, test = data["train"], data["test"]
     if len(test["label"]) == 0 or len(full_train["label"]) == 0:
         raise ValueError(
-            f"{config.dataset}/{config.data_config}: an empty split "
+            f"{config.input.dataset}/{config.input.data_config}: an empty split "
             f"(train {len(full_train['label'])}, test {len(test['label'])} points)"
         )
-    val_mask = split_validation(full_train["viewpoint"], config.validation_fraction, config.seed)
+    val_mask = split_validation(full_train["viewpoint"], config.input.validation_fraction,
+                                config.seed)
     train_cols, val_cols = subset(full_train, ~val_mask), subset(full_train, val_mask)
     log.info(
         "points: train %d, validation %d, test %d",
@@ -206,7 +210,7 @@ def run(
             **{name: evaluation.average_curve(p, mask).tolist() for name, p in baselines.items()},
         },
         "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
-        "dataset": {"name": config.dataset, "config": config.data_config},
+        "dataset": {"name": config.input.dataset, "config": config.input.data_config},
     }
     known = test["category"] >= 0
     if known.any():
@@ -230,8 +234,9 @@ def run(
     figures = plots.experiment_figures(
         workdir, metrics, test, pred, schedule, config, image_loader=image_loader(config)
     )
-    figures += learning_curve(workdir, {"RP": workdir}, title=f"Training the RP, {config.dataset}"
-                              f" ({config.data_config})")
+    figures += learning_curve(workdir, {"RP": workdir},
+                              title=f"Training the RP, {config.input.dataset}"
+                              f" ({config.input.data_config})")
     timings["figures_s"] = time.perf_counter() - t0
     metrics["figures"] = [str(Path(f).name) for f in figures]
     metrics["timings"] = {k: round(v, 2) for k, v in timings.items()}
@@ -258,12 +263,14 @@ def redraw_figures(workdir: str | os.PathLike) -> list[Path]:
     from rp_jax.datasets import loading
 
     workdir = Path(workdir).absolute()
-    config = ml_collections.ConfigDict(read_json(workdir / "config.json"))
+    config = ml_collections.ConfigDict(
+        configs_default.upgrade(read_json(workdir / "config.json")))
     metrics = read_json(workdir / "metrics.json")
-    schedule = schedule_lib.preset(config.schedule)
+    schedule = schedule_lib.preset(config.input.schedule)
     keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
-    test = loading.load_columns(config.dataset, "test", keys=keys, config=config.data_config,
-                                data_dir=config.data_dir or None)
+    test = loading.load_columns(config.input.dataset, "test", keys=keys,
+                                config=config.input.data_config,
+                                data_dir=config.input.data_dir or None)
     if len(test["label"]) != metrics["counts"]["test"]:
         raise ValueError(f"the test split now has {len(test['label'])} points, the run had "
                          f"{metrics['counts']['test']}: the dataset changed since {workdir}")
@@ -274,8 +281,9 @@ def redraw_figures(workdir: str | os.PathLike) -> list[Path]:
                          f"{metrics['test_mae']:.5f}: the dataset or checkpoint changed")
     figures = plots.experiment_figures(workdir, metrics, test, pred, schedule, config,
                                        image_loader=image_loader(config))
-    figures += learning_curve(workdir, {"RP": workdir}, title=f"Training the RP, {config.dataset}"
-                              f" ({config.data_config})")
+    figures += learning_curve(workdir, {"RP": workdir},
+                              title=f"Training the RP, {config.input.dataset}"
+                              f" ({config.input.data_config})")
     metrics["figures"] = [Path(f).name for f in figures]
     write_json(workdir / "metrics.json", metrics)
     files.write_text(workdir / "report.md", report_markdown(metrics, config))
@@ -289,20 +297,22 @@ def image_loader(config):
     from rp_jax.datasets import loading, registry
 
     try:
-        if config.data_config == "real":
-            root = Path(config.manual_dir)
-        elif config.get("synthetic_root"):
-            root = Path(config.synthetic_root)
+        if config.input.data_config == "real":
+            root = Path(config.input.manual_dir)
+        elif config.input.get("synthetic_root"):
+            root = Path(config.input.synthetic_root)
         else:
-            cfg = next(c for c in builder_lib.builder_configs() if c.name == config.data_config)
-            data_dir = Path(config.data_dir) if config.data_dir else loading.default_data_dir()
+            cfg = next(c for c in builder_lib.builder_configs()
+                       if c.name == config.input.data_config)
+            data_dir = (Path(config.input.data_dir) if config.input.data_dir
+                        else loading.default_data_dir())
             root = builder_lib.synthetic_root(
-                data_dir.absolute(), config.dataset, cfg.size, cfg.seed
+                data_dir.absolute(), config.input.dataset, cfg.size, cfg.seed
             )
-        dataset = registry.get(config.dataset)
+        dataset = registry.get(config.input.dataset)
         captures = dataset.read(root)
     except (OSError, ValueError) as e:  # figures then say "image not found"
-        log.warning("cannot index the %s images for figures: %s", config.dataset, e)
+        log.warning("cannot index the %s images for figures: %s", config.input.dataset, e)
         return None
     index = {(c.viewpoint, c.image_id): c for c in captures}
 
@@ -379,7 +389,7 @@ def report_markdown(metrics: dict, config) -> str:
     b = metrics["baselines"]
     rows = [("RP (ours)", metrics)] + [(name.replace("_", " "), m) for name, m in b.items()]
     lines = [
-        f"# {config.dataset} ({config.data_config}): repeatability prediction",
+        f"# {config.input.dataset} ({config.input.data_config}): repeatability prediction",
         "",
         "## Setup",
         f"- Schedule `{metrics['schedule']['name']}`: "
@@ -391,9 +401,9 @@ def report_markdown(metrics: dict, config) -> str:
         f"({metrics['counts']['validation_viewpoints']} held-out "
         f"training viewpoints), {metrics['counts']['test']} test "
         f"({metrics['counts']['test_viewpoints']} viewpoints).",
-        f"- Time input `{config.time_fields}` ({config.time_encoding}); "
-        f"{config.num_epochs} epochs, batch "
-        f"{config.batch_size}, AdamW lr {config.learning_rate}.",
+        f"- Time input `{config.model.time_fields}` ({config.model.time_encoding}); "
+        f"{config.train.num_epochs} epochs, batch "
+        f"{config.input.batch_size}, AdamW lr {config.train.learning_rate}.",
         "",
         "## Results on the test viewpoints",
         "",

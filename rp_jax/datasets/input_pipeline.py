@@ -78,7 +78,7 @@ def epoch_batches(source: ArraySource, batch_size: int, *, seed: int, epoch: int
     if len(source) < batch_size:
         raise ValueError(
             f"{len(source)} training records is fewer than one batch of {batch_size}; "
-            "lower config.batch_size"
+            "lower config.input.batch_size"
         )
     indices = (
         grain.MapDataset.range(len(source))

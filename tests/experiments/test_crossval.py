@@ -48,7 +48,7 @@ def _tiny_config():
     config = get_config("tiny")
     config.model.encoder_channels = (8, 8, 16)
     config.model.encoder_features = 16
-    config.num_epochs, config.batch_size, config.eval_batch_size = 2, 32, 64
+    config.train.num_epochs, config.input.batch_size, config.eval.batch_size = 2, 32, 64
     return config
 
 
@@ -87,7 +87,7 @@ def test_cross_validate_scores_each_held_out_viewpoint_and_resumes(tmp_path, mon
     again = crossval.cross_validate(_tiny_config(), tmp_path, cols, progress=False)
     assert again["summary"] == sm
     other = _tiny_config()
-    other.learning_rate = 1e-4  # finished folds of another config are not mixed in
+    other.train.learning_rate = 1e-4  # finished folds of another config are not mixed in
     with pytest.raises(ValueError, match="another config"):
         crossval.cross_validate(other, tmp_path, cols, progress=False)
 

@@ -42,7 +42,7 @@ def tiny_run(tmp_path_factory):
         str(workdir),
         "--data-dir",
         str(tmp / "tfds"),
-        "--config.num_epochs=1",
+        "--config.train.num_epochs=1",
         f"--config.map.ratios=({','.join(RATIOS)})",
     ]
     assert main(argv) == 0
@@ -158,15 +158,15 @@ def test_pool_scores_posed_queries_only_and_pairs_them():
 def test_default_size_seeds_and_overrides():
     config, workdir = parse(["--config.map.cell_size_m=5"])
     assert config.map.synthetic_size == DEFAULT_SIZE
-    assert config.data_config == f"synthetic_{DEFAULT_SIZE}"
+    assert config.input.data_config == f"synthetic_{DEFAULT_SIZE}"
     assert config.map.cell_size_m == 5.0
     assert str(workdir).endswith(f"map_summarization_{DEFAULT_SIZE}")
-    assert config.dataset == "robotcar" and config.schedule == "robotcar"
+    assert config.input.dataset == "robotcar" and config.input.schedule == "robotcar"
     assert config.map.query_dates == ()  # every query date of the layout
     assert config.map.seeds == (0, 1, 2)
     assert config.map.ratios == (0.5, 0.6, 0.7, 0.8, 0.9)
     config, _ = parse(["--size", "tiny", "--seeds", "3,5"])
-    assert config.data_config == "synthetic_tiny" and config.map.seeds == (3, 5)
+    assert config.input.data_config == "synthetic_tiny" and config.map.seeds == (3, 5)
     config, _ = parse(["--seeds=4"])
     assert config.map.seeds == (4,)
     for bad in (["--seeds", "a,b"], ["--seeds", "-1"], ["--seeds"]):
@@ -178,7 +178,7 @@ def test_rp_config_drops_map_fields(tmp_path):
     config, _ = parse(["--size", "tiny", "--manual-dir", str(tmp_path)])
     cfg = rp_config(config)
     assert "map" not in cfg and "map" in config
-    assert cfg.manual_dir == str(tmp_path.absolute() / "robotcar")
+    assert cfg.input.manual_dir == str(tmp_path.absolute() / "robotcar")
 
 
 def test_point_categories_majority():
@@ -287,7 +287,7 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     tfds_dir = argv[argv.index("--data-dir") + 1]
     half = [
         "--size", "tiny", "--workdir", str(tmp_path / "run"), "--data-dir", tfds_dir,
-        "--config.num_epochs=1", f"--config.map.root={root}", "--config.map.ratios=(0.5,)",
+        "--config.train.num_epochs=1", f"--config.map.root={root}", "--config.map.ratios=(0.5,)",
     ]
     assert main(half) == 0
     out = json.loads((tmp_path / "run" / "metrics.json").read_text())

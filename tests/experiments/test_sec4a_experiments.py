@@ -78,7 +78,8 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.parse(["--size", "huge"], "webcam_clipart", webcam_config, "")
     for argv, message in ((["--config.num_epoch=3"], "--config.num_epoch: no such field"),
-                          (["--config.num_epochs=three"], "--config.num_epochs=three: invalid")):
+                          (["--config.train.num_epochs=three"],
+                           "--config.train.num_epochs=three: invalid")):
         with pytest.raises(SystemExit) as exit_info:
             cli.parse(argv, "webcam_clipart", webcam_config, "")
         assert exit_info.value.code == 2 and message in capsys.readouterr().err
@@ -90,9 +91,9 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
         cli.parse(["--config", str(tmp_path / "none.py")], "webcam_clipart", webcam_config, "")
     config, workdir = cli.parse(
         [
-            "--config.num_epochs=3",
+            "--config.train.num_epochs=3",
             "--config.model.encoder_channels=(8, 8, 16)",
-            "--config.augment.flip=no",  # the earlier parser's yes/no for a bool
+            "--config.input.augment.flip=no",  # the earlier parser's yes/no for a bool
             "--manual-dir",
             str(tmp_path),
         ],
@@ -100,30 +101,32 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
         cmu_config,
         "",
     )
-    assert config.num_epochs == 3 and tuple(config.model.encoder_channels) == (8, 8, 16)
-    assert config.augment.flip is False
-    assert config.data_config == "real" and workdir.name == "cmu_seasons_real"
-    assert config.manual_dir == str(tmp_path.absolute()) and config.data_dir == ""
+    assert config.train.num_epochs == 3 and tuple(config.model.encoder_channels) == (8, 8, 16)
+    assert config.input.augment.flip is False
+    assert config.input.data_config == "real" and workdir.name == "cmu_seasons_real"
+    assert config.input.manual_dir == str(tmp_path.absolute()) and config.input.data_dir == ""
 
 
 def test_cli_data_dir_is_the_tfds_folder_and_old_spellings_warn(tmp_path, capsys):
     # --data-dir is the TFDS data directory, as in python -m rp_jax.datasets and TFDS.
     config, workdir = cli.parse(["--size", "tiny", "--data-dir", str(tmp_path / "tfds")],
                                 "webcam_clipart", webcam_config, "")
-    assert config.data_dir == str(tmp_path / "tfds") and config.data_config == "synthetic_tiny"
-    assert config.manual_dir == "" and workdir.name == "webcam_clipart_tiny"
+    assert config.input.data_dir == str(tmp_path / "tfds")
+    assert config.input.data_config == "synthetic_tiny"
+    assert config.input.manual_dir == "" and workdir.name == "webcam_clipart_tiny"
     assert capsys.readouterr().err == ""
     # Released spellings work one more release, with a warning on stderr.
     config, _ = cli.parse(["--tfds-dir", str(tmp_path / "tfds")], "webcam_clipart",
                           webcam_config, "")
-    assert config.data_dir == str(tmp_path / "tfds")
+    assert config.input.data_dir == str(tmp_path / "tfds")
     assert "--tfds-dir is deprecated" in capsys.readouterr().err
     download = tmp_path / "download"
     (download / "scene_00").mkdir(parents=True)  # files, no built dataset: the old meaning
     config, workdir = cli.parse(["--data-dir", str(download)], "webcam_clipart", webcam_config,
                                 "")
-    assert config.data_config == "real" and config.manual_dir == str(download.absolute())
-    assert config.data_dir == "" and workdir.name == "webcam_clipart_real"
+    assert config.input.data_config == "real"
+    assert config.input.manual_dir == str(download.absolute())
+    assert config.input.data_dir == "" and workdir.name == "webcam_clipart_real"
     err = capsys.readouterr().err
     assert "is deprecated" in err and f"use --manual-dir {download}" in err
     # A TFDS data directory holding other TFDS datasets is one, not a download.
@@ -131,7 +134,7 @@ def test_cli_data_dir_is_the_tfds_folder_and_old_spellings_warn(tmp_path, capsys
     (other / "mnist" / "3.0.1").mkdir(parents=True)
     (other / "mnist" / "3.0.1" / "dataset_info.json").write_text("{}")
     config, _ = cli.parse(["--data-dir", str(other)], "webcam_clipart", webcam_config, "")
-    assert config.data_dir == str(other) and config.data_config == "synthetic"
+    assert config.input.data_dir == str(other) and config.input.data_config == "synthetic"
     assert capsys.readouterr().err == ""
 
 
@@ -140,17 +143,37 @@ def test_cli_config_file_and_print_config(tmp_path, capsys):
     path = "experiments/cmu_seasons/config.py"
     config, workdir = cli.parse(["--config", f"{path}:tiny", "--config.seed=7"],
                                 "webcam_clipart", webcam_config, "")
-    assert config.dataset == "cmu_seasons" and config.data_config == "synthetic_tiny"
+    assert config.input.dataset == "cmu_seasons" and config.input.data_config == "synthetic_tiny"
     assert config.seed == 7 and workdir.name == "webcam_clipart_cmu_seasons_tiny"
     config, _ = cli.parse(["--config", path, "--size", "small"], "webcam_clipart",
                           webcam_config, "")
-    assert config.data_config == "synthetic_small"
+    assert config.input.data_config == "synthetic_small"
     with pytest.raises(SystemExit) as exit_info:
-        cli.parse(["--size", "tiny", "--config.num_epochs", "5", "--print-config"],
+        cli.parse(["--size", "tiny", "--config.train.num_epochs", "5", "--print-config"],
                   "webcam_clipart", webcam_config, "")
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
-    assert "num_epochs: 5\n" in out and "data_config: synthetic_tiny\n" in out
+    assert "\ntrain:\n" in out and "  num_epochs: 5\n" in out
+    assert "\ninput:\n" in out and "  data_config: synthetic_tiny\n" in out
+
+
+def test_cli_reads_a_field_named_before_the_grouping_with_a_warning(capsys):
+    # Config fields moved into groups (input/model/train/eval); the old names keep working
+    # for one release, as the old flag spellings do.
+    config, _ = cli.parse(["--size", "tiny", "--config.num_epochs=4", "--config.augment.flip=no",
+                           "--noconfig.keep_best", "--config.knn_k", "3"],
+                          "webcam_clipart", webcam_config, "")
+    assert config.train.num_epochs == 4 and config.input.augment.flip is False
+    assert config.train.keep_best is False and config.eval.knn_k == 3
+    err = capsys.readouterr().err
+    for old, new in (("--config.num_epochs", "--config.train.num_epochs"),
+                     ("--config.augment.flip", "--config.input.augment.flip"),
+                     ("--noconfig.keep_best", "--noconfig.train.keep_best"),
+                     ("--config.knn_k", "--config.eval.knn_k")):
+        assert f"{old} is deprecated" in err and f"use {new}" in err
+    with pytest.raises(SystemExit) as exit_info:  # a name that never was a field stays an error
+        cli.parse(["--config.num_epoch=3"], "webcam_clipart", webcam_config, "")
+    assert exit_info.value.code == 2
     help_text = cli.build_parser("webcam_clipart", "").format_help()
     assert "--config FILE[:ARG]" in help_text and "--config.FIELD=VALUE" in help_text
 

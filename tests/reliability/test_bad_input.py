@@ -220,7 +220,7 @@ def _experiment(name: str, *flags: str, workdir: str = "run"):
         main = importlib.import_module(f"experiments.{name}.__main__").main \
             if name == "map_summarization" else _sec4a_main(name)
         argv = ["--size", "tiny", "--workdir", str(tmp / workdir),
-                f"--config.data_dir={tmp / 'tfds'}", *[f.format(tmp=tmp) for f in flags]]
+                f"--config.input.data_dir={tmp / 'tfds'}", *[f.format(tmp=tmp) for f in flags]]
         return _exit_status(main, argv), [tmp]
     return make
 
@@ -244,7 +244,7 @@ def _data_dir_a_file(tmp: Path):
 
 def _experiment_data_dir_a_file(tmp: Path):
     (tmp / "notes").write_text("not a folder")
-    return _experiment("webcam_clipart", "--config.data_dir={tmp}/notes")(tmp)
+    return _experiment("webcam_clipart", "--config.input.data_dir={tmp}/notes")(tmp)
 
 
 def _demo(*flags: str):
@@ -377,9 +377,10 @@ def _cases() -> list[Case]:
              (r"2 sizes", r"1 at 48x36 \(20100601_083000\.png\)")),
         # Item 6: no model of another epoch count, no training on NaN.
         Case("a trained workdir asked for another epoch count", _another_epoch_count,
-             train.WorkdirMismatchError, (r"num_epochs=1, asked num_epochs=2", r"--workdir")),
+             train.WorkdirMismatchError,
+             (r"train\.num_epochs=1, asked train\.num_epochs=2", r"--workdir")),
         Case("a NaN learning rate", _nan_learning_rate, train.ConfigError,
-             (r"config\.learning_rate=nan: expected a finite number > 0",)),
+             (r"config\.train\.learning_rate=nan: expected a finite number > 0",)),
         Case("NaN inputs", _nan_inputs, train.NonFiniteLossError,
              (r"training loss is nan at epoch 1, step 1", r"no checkpoint")),
         # Item 7: no input dropped in silence.
@@ -396,33 +397,38 @@ def _cases() -> list[Case]:
         *[Case(f"--config.{flag}", _experiment("webcam_clipart", f"--config.{flag}"), 2,
                (rf"config\.{re.escape(shown)}: expected {expected}",))
           for flag, shown, expected in (
-              ("batch_size=0", "batch_size=0", "an integer >= 1"),
-              ("time_encoding=bogus", "time_encoding='bogus'", r"one of \['raw', 'cyclic'\]"),
-              ("num_epochs=0", "num_epochs=0", "an integer >= 1"),
-              ("validation_fraction=1.5", "validation_fraction=1.5", r"a number in \[0, 1\)"),
-              ("validation_fraction=-0.1", "validation_fraction=-0.1", r"a number in \[0, 1\)"),
-              ("learning_rate=-1", "learning_rate=-1.0", "a finite number > 0"),
-              ("knn_k=0", "knn_k=0", "an integer >= 1"),
-              ("schedule=cmu_seasons", "schedule='cmu_seasons'", "'webcam_clipart'"),
+              ("input.batch_size=0", "input.batch_size=0", "an integer >= 1"),
+              ("model.time_encoding=bogus", "model.time_encoding='bogus'",
+               r"one of \['raw', 'cyclic'\]"),
+              ("train.num_epochs=0", "train.num_epochs=0", "an integer >= 1"),
+              ("input.validation_fraction=1.5", "input.validation_fraction=1.5",
+               r"a number in \[0, 1\)"),
+              ("input.validation_fraction=-0.1", "input.validation_fraction=-0.1",
+               r"a number in \[0, 1\)"),
+              ("train.learning_rate=-1", "train.learning_rate=-1.0", "a finite number > 0"),
+              ("eval.knn_k=0", "eval.knn_k=0", "an integer >= 1"),
+              ("input.schedule=cmu_seasons", "input.schedule='cmu_seasons'",
+               "'webcam_clipart'"),
               ("model.dtype=float16", "model.dtype='float16'", "one of"),
               ("model.encoder_features=0", "model.encoder_features=0", "an integer >= 1"),
-              ("augment.contrast=2", "augment.contrast=2.0", r"a number in \[0, 1\)"),
-              ("num_devices=-1", "num_devices=-1", "an integer >= 0"),
-              ("eval_every_epochs=0", "eval_every_epochs=0", "an integer >= 1"),
+              ("input.augment.contrast=2", "input.augment.contrast=2.0",
+               r"a number in \[0, 1\)"),
+              ("train.num_devices=-1", "train.num_devices=-1", "an integer >= 0"),
+              ("eval.every_epochs=0", "eval.every_epochs=0", "an integer >= 1"),
               ("seed=-1", "seed=-1", "an integer >= 0"),
-              ("batch_size=33", "batch_size=33", "a multiple of the 2 devices"),
+              ("input.batch_size=33", "input.batch_size=33", "a multiple of the 2 devices"),
           )],
-        Case("a CMU run with a bad field", _experiment("cmu_seasons", "--config.grad_clip=0"),
-             2, (r"config\.grad_clip=0\.0: expected a finite number > 0",)),
+        Case("a CMU run with a bad field", _experiment("cmu_seasons", "--config.train.grad_clip=0"),
+             2, (r"config\.train\.grad_clip=0\.0: expected a finite number > 0",)),
         Case("more devices than there are", _experiment("webcam_clipart",
-                                                        "--config.num_devices=99"), 2,
-             (r"config\.num_devices=99 but only 2 local devices",)),
+                                                        "--config.train.num_devices=99"), 2,
+             (r"config\.train\.num_devices=99 but only 2 local devices",)),
         Case("a --data-dir that is a file", _data_dir_a_file, 2,
              (r"--data-dir .*tfds is a file; expected the TFDS data directory",)),
         Case("a TFDS data_dir that is a file", _experiment_data_dir_a_file, 2,
-             (r"config\.data_dir='.*notes': expected a folder \(created if absent\)",)),
-        Case("the demo with num_epochs=0", _demo("--config.num_epochs=0"), 2,
-             (r"config\.num_epochs=0: expected an integer >= 1",)),
+             (r"config\.input\.data_dir='.*notes': expected a folder \(created if absent\)",)),
+        Case("the demo with num_epochs=0", _demo("--config.train.num_epochs=0"), 2,
+             (r"config\.train\.num_epochs=0: expected an integer >= 1",)),
         Case("a workdir that is a file", _workdir_a_file, 2,
              (r"run is a file, not a folder", r"--workdir")),
         Case("a workdir of another experiment", _workdir_of_another_experiment, 2,
