@@ -4,10 +4,12 @@ vs on (issue 17; ``experiments.decay.measure``).
 Usage::
 
     python -m experiments.decay [--size tiny|small|full] [--workdir DIR] [--seed N]
-                                [--workers N] [--max-keypoints N] [--resamples N] [--quiet]
+                                [--workers N] [--max-keypoints N] [--resamples N]
+                                [--kinds tenant,repaint,...] [--quiet]
 
-Writes ``<workdir>/decay.json`` and ``decay.md`` (default workdir ``runs/decay_<size>``) and
-prints the table. Resumable: renders and labels already on disk are reused.
+Writes ``<workdir>/decay.json``, ``decay.md``, ``decay.png`` and ``years.png`` (default
+workdir ``runs/decay_<size>``; ``decay-<kinds>.*`` with ``--kinds``) and prints the tables.
+Resumable: renders and labels already on disk are reused.
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="interest points per image (the ground truth's cap)")
     parser.add_argument("--resamples", type=int, default=2000,
                         help="bootstrap resamples of the intervals")
+    parser.add_argument("--kinds", default=None,
+                        help="an ablation: only these slow changes, comma-separated, of "
+                        "tenant, repaint, sign, tree_replacement, tree_growth (default: all); "
+                        "writes decay-<kinds>.*")
     command_line.add_quiet(parser)
     return parser
 
@@ -46,14 +52,16 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
-    from experiments.decay.measure import markdown, run
+    from experiments.decay.measure import category_markdown, markdown, run
 
     workdir = args.workdir or Path("runs") / f"decay_{args.size}"
     result = run(workdir, size=args.size, seed=args.seed, workers=args.workers,
                  max_keypoints=args.max_keypoints, resamples=args.resamples,
+                 kinds=None if args.kinds is None else tuple(args.kinds.split(",")),
                  progress=not args.quiet)
-    print(markdown(result["bins"]), end="")
-    print(f"written: {workdir / 'decay.json'}, {workdir / 'decay.md'}")
+    print(markdown(result["bins"]))
+    print(category_markdown(result["by_category"]), end="")
+    print(f"written into {workdir}: decay*.json, .md, .png, years*.png")
     return 0
 
 

@@ -68,7 +68,11 @@ def test_a_tiny_run_measures_a_decay(tmp_path):
     result = measure.run(tmp_path, size="tiny", workers=1, resamples=200, progress=False)
     written = json.loads((tmp_path / "decay.json").read_text())
     assert written == json.loads(json.dumps(result))
-    assert (tmp_path / "decay.md").read_text().count("\n") == 2 + measure.NUM_BINS
+    tables = (tmp_path / "decay.md").read_text().split("\n\n")
+    assert len(tables) == 2
+    assert len(tables[0].splitlines()) == 2 + measure.NUM_BINS  # header, rule, the bins
+    assert len(tables[1].splitlines()) == 2 + len(measure.CATEGORIES)
+    assert set(result["by_category"]) == set(measure.CATEGORIES)
     rows = result["bins"]
     assert [r["years_apart"] for r in rows] == list(range(measure.NUM_BINS))
     for r in rows:
@@ -81,3 +85,16 @@ def test_a_tiny_run_measures_a_decay(tmp_path):
     last = rows[-1]
     assert last["on"]["inlier_fraction"] < last["off"]["inlier_fraction"]
     assert result["rates"]["tree_mortality_per_year"] == 0.035
+    import cv2
+
+    for figure in ("decay.png", "years.png"):
+        image = cv2.imread(str(tmp_path / figure))
+        assert image is not None and image.std() > 10, figure  # written, not blank
+    # An ablation reuses the frozen world and names its own outputs.
+    grown = measure.run(tmp_path, size="tiny", workers=1, resamples=50, progress=False,
+                        kinds=("tree_growth",))
+    assert grown["kinds"] == ["tree_growth"] and result["kinds"] == list(measure.slow_changes.KINDS)
+    assert (tmp_path / "decay-tree_growth.json").is_file()
+    assert (tmp_path / "layouts" / "webcam_years-tree_growth").is_dir()
+    assert grown["bins"][0]["off"] == {**result["bins"][0]["off"],
+                                       **{k: grown["bins"][0]["off"][k] for k in ("low", "high")}}

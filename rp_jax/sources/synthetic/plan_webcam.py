@@ -369,13 +369,22 @@ def _years_times(
     ]
 
 
-def plan_years(out_dir: Path, size: str, seed: int, *, slow_changes: bool = True) -> Plan:
+def plan_years(
+    out_dir: Path,
+    size: str,
+    seed: int,
+    *,
+    slow_changes: bool = True,
+    kinds: tuple[str, ...] | None = None,
+) -> Plan:
     """The frames of ``webcam_years`` (``slow_changes``) or ``webcam_years_frozen`` (not):
-    the Webcam Clip Art layout, each scene on the same days of 2012-2017."""
-    from rp_jax.sources.synthetic.slow_changes import SlowChanges
+    the Webcam Clip Art layout, each scene on the same days of 2012-2017. ``kinds``: only
+    these of ``slow_changes.KINDS`` (all by default), for an ablation."""
+    from rp_jax.sources.synthetic.slow_changes import KINDS, SlowChanges
 
     spec = _YEARS_SIZES[size]
-    extra = (("slow_changes", SlowChanges(YEARS_REFERENCE_DATE)),) if slow_changes else ()
+    changes = SlowChanges(YEARS_REFERENCE_DATE, KINDS if kinds is None else tuple(kinds))
+    extra = (("slow_changes", changes),) if slow_changes else ()
     return _plan(
         "webcam_years" if slow_changes else "webcam_years_frozen",
         out_dir,
