@@ -393,9 +393,13 @@ def run(
 
 def plot_decay(rows: list[dict], out: Path) -> Path:
     """Inlier % against years apart, off and on, with the 95 % intervals, as a PNG."""
-    from rp_jax.plots import _new_figure, save_figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    fig = _new_figure(5.0, 3.4)
+    from rp_jax.plots import save_figure
+
+    fig = Figure(figsize=(5.0, 3.4), dpi=100)  # the object API: no pyplot state
+    FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     years = np.array([r["years_apart"] for r in rows], np.float64)
     for k, (world, label, colour) in enumerate(
