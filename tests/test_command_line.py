@@ -61,6 +61,8 @@ COMMANDS = {
                               ["experiments/benchmark/__main__.py"], [], True),
     "experiments.demo": (_main("experiments.demo"), [], ["experiments/demo.py"], ["--epochs"],
                          True),
+    "experiments.decay": (_main("experiments.decay.__main__"), [],
+                          ["experiments/decay/__main__.py"], [], True),
     "experiments.ship_models": (_main("experiments.ship_models"), [],
                                 ["experiments/ship_models.py"], ["--config"], False),
     "rp_jax.datasets build": (_main("rp_jax.datasets.__main__"), ["build"],

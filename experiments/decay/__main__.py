@@ -49,7 +49,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from rp_jax.sources.synthetic.slow_changes import KINDS
+
+    if args.kinds is not None:
+        unknown = sorted(set(args.kinds.split(",")) - set(KINDS))
+        if unknown:
+            parser.error(f"--kinds {args.kinds}: unknown {', '.join(unknown)}; expected a "
+                         f"comma-separated subset of {', '.join(KINDS)}")
+    for flag, value, least in (("--workers", args.workers, 1), ("--seed", args.seed, 0),
+                               ("--max-keypoints", args.max_keypoints, 1),
+                               ("--resamples", args.resamples, 1)):
+        if value is not None and value < least:
+            parser.error(f"{flag} {value}: expected an integer >= {least}")
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
     from experiments.decay.measure import category_markdown, markdown, run

@@ -98,3 +98,16 @@ def test_a_tiny_run_measures_a_decay(tmp_path):
     assert (tmp_path / "layouts" / "webcam_years-tree_growth").is_dir()
     assert grown["bins"][0]["off"] == {**result["bins"][0]["off"],
                                        **{k: grown["bins"][0]["off"][k] for k in ("low", "high")}}
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--kinds", "tenant,bogus"], "--kinds tenant,bogus: unknown bogus"),
+    (["--workers", "0"], "--workers 0: expected an integer >= 1"),
+    (["--resamples", "0"], "--resamples 0: expected an integer >= 1"),
+])
+def test_bad_arguments_are_one_line_errors(argv, message, capsys):
+    from experiments.decay.__main__ import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2 and message in capsys.readouterr().err
