@@ -22,8 +22,9 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-__all__ = ["gem_pool", "GeM", "PatchEncoder", "RepeatabilityPredictor", "space_to_depth",
-           "create_model", "init_params", "preprocess_patches"]
+__all__ = ["gem_pool", "GeM", "Conv1", "CONV1_PATHS", "PatchEncoder", "RepeatabilityPredictor",
+           "space_to_depth", "conv1_kernel_on_image", "create_model", "init_params",
+           "preprocess_patches"]
 
 GEM_EPS = 1e-6
 
@@ -69,6 +70,60 @@ def space_to_depth(x: jnp.ndarray, block: int) -> jnp.ndarray:
     return x.transpose(0, 1, 3, 2, 4, 5).reshape(b, h // block, w // block, block * block * c)
 
 
+CONV1_PATHS = ("image", "space_to_depth")
+
+
+def conv1_kernel_on_image(kernel: jnp.ndarray, block: int = 4) -> jnp.ndarray:
+    """conv1's [3, 3, b*b*C, O] kernel over the space-to-depth map as the equivalent
+    [3b, 3b, C, O] kernel over the image (stride b): channel (r, s, c) of block (i, j)
+    is pixel (b*i + r, b*j + s), colour c (the channel order of ``space_to_depth``)."""
+    kh, kw, cin, cout = kernel.shape
+    c = cin // (block * block)
+    k = kernel.reshape(kh, kw, block, block, c, cout).transpose(0, 2, 1, 3, 4, 5)
+    return k.reshape(kh * block, kw * block, c, cout)
+
+
+class Conv1(nn.Module):
+    """The encoder's first layer: a 3x3 "SAME" convolution over the 4x4 space-to-depth map
+    of the patch, with ``nn.Conv``'s parameters (``kernel`` [3, 3, 48, O], ``bias`` [O]).
+
+    ``path`` chooses how it is computed; both give the same function of the same
+    parameters (up to float rounding):
+
+    * ``"image"``: one 12x12, stride-4 convolution over the 64x64x3 patch itself, with the
+      kernel rearranged (``conv1_kernel_on_image``) and 4 pixels (one block) of zero padding
+      on each side. XLA:CPU then never materialises the space-to-depth transpose (a slow
+      copy with a 3-float inner dimension), forwards or in the weight gradient.
+    * ``"space_to_depth"``: the reshape-transpose to 16x16x48, then ``nn.Conv``'s 3x3
+      convolution (the original formulation).
+    """
+
+    features: int
+    path: str = "image"
+    block: int = 4
+    dtype: jnp.dtype = jnp.float32
+
+    @nn.compact
+    def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+        if self.path not in CONV1_PATHS:
+            raise ValueError(f"conv1 path must be one of {CONV1_PATHS}, got {self.path!r}")
+        cin = self.block * self.block * x.shape[-1]
+        kernel = self.param("kernel", nn.initializers.lecun_normal(),
+                            (3, 3, cin, self.features), jnp.float32)
+        bias = self.param("bias", nn.initializers.zeros_init(), (self.features,), jnp.float32)
+        x, kernel, bias = nn.dtypes.promote_dtype(x, kernel, bias, dtype=self.dtype)
+        dn = ("NHWC", "HWIO", "NHWC")
+        if self.path == "image":
+            pad = (self.block, self.block)
+            y = jax.lax.conv_general_dilated(
+                x, conv1_kernel_on_image(kernel, self.block), (self.block, self.block),
+                (pad, pad), dimension_numbers=dn)
+        else:
+            y = jax.lax.conv_general_dilated(
+                space_to_depth(x, self.block), kernel, (1, 1), "SAME", dimension_numbers=dn)
+        return y + bias
+
+
 class PatchEncoder(nn.Module):
     """A small CNN for the 64x64x3 patch, shaped for CPU throughput.
 
@@ -76,21 +131,24 @@ class PatchEncoder(nn.Module):
     reshape to 16x16x48), so every convolution runs on small spatial maps with channel
     counts that are multiples of 16 (vector-friendly); the last map (4x4) is flattened, not
     averaged, so the encoder keeps *where* in the patch a structure lies (the keypoint is at
-    the centre).
+    the centre). ``conv1_path`` picks how the first layer is computed (see ``Conv1``; same
+    function, same parameters).
     """
 
     channels: Sequence[int] = (64, 64, 128)
     features: int = 128
     dtype: jnp.dtype = jnp.float32
+    conv1_path: str = "image"
 
     @nn.compact
     def __call__(self, patches: jnp.ndarray) -> jnp.ndarray:
         x = patches.astype(self.dtype)
-        x = space_to_depth(x, 4)  # 64x64x3 -> 16x16x48
         for i, ch in enumerate(self.channels):
-            stride = 1 if i == 0 else 2
-            x = nn.Conv(ch, (3, 3), strides=(stride, stride), padding="SAME", dtype=self.dtype,
-                        name=f"conv{i + 1}")(x)
+            if i == 0:  # 64x64x3 -> 16x16xch, through the 16x16x48 space-to-depth map
+                x = Conv1(ch, self.conv1_path, 4, self.dtype, name="conv1")(x)
+            else:
+                x = nn.Conv(ch, (3, 3), strides=(2, 2), padding="SAME", dtype=self.dtype,
+                            name=f"conv{i + 1}")(x)
             x = nn.relu(x)
         x = x.reshape(x.shape[0], -1)
         return nn.relu(nn.Dense(self.features, dtype=self.dtype, name="proj")(x))
@@ -105,6 +163,8 @@ class RepeatabilityPredictor(nn.Module):
       gem_init_p: initial GeM exponent.
       dtype: computation dtype of the patch encoder (float32 or bfloat16); the fc layers and
         the output are float32.
+      conv1_path: how the encoder's first layer is computed, ``"image"`` (default) or
+        ``"space_to_depth"``: the same function of the same parameters (see ``Conv1``).
     """
 
     num_timestamps: int
@@ -112,6 +172,7 @@ class RepeatabilityPredictor(nn.Module):
     encoder_features: int = 128
     gem_init_p: float = 3.0
     dtype: jnp.dtype = jnp.float32
+    conv1_path: str = "image"
 
     @nn.compact
     def __call__(self, patches: jnp.ndarray, xy: jnp.ndarray, time: jnp.ndarray) -> jnp.ndarray:
@@ -120,7 +181,7 @@ class RepeatabilityPredictor(nn.Module):
         Returns: [B, T] float32 repeatability scores.
         """
         feat = PatchEncoder(self.encoder_channels, self.encoder_features, self.dtype,
-                            name="patch_encoder")(patches).astype(jnp.float32)
+                            self.conv1_path, name="patch_encoder")(patches).astype(jnp.float32)
         h = jnp.concatenate([feat, xy.astype(jnp.float32), time.astype(jnp.float32)], axis=-1)
         z1 = nn.relu(nn.Dense(64, name="fc1")(h))
         h = nn.relu(nn.Dense(32, name="fc2")(z1))

@@ -62,3 +62,54 @@ def test_bfloat16_encoder_keeps_float32_output():
     x = jnp.zeros((2, 64, 64, 3))
     params = net.init(jax.random.key(0), x, jnp.zeros((2, 2)), jnp.zeros((2, 2)))
     assert net.apply(params, x, jnp.zeros((2, 2)), jnp.zeros((2, 2))).dtype == jnp.float32
+
+
+def _both_conv1_paths(dtype=jnp.float32):
+    kw = dict(num_timestamps=5, dtype=dtype)
+    return (model.RepeatabilityPredictor(**kw),
+            model.RepeatabilityPredictor(conv1_path="space_to_depth", **kw))
+
+
+def test_conv1_on_the_image_is_the_space_to_depth_network():
+    """The default conv1 (a 12x12 stride-4 convolution of the patch) computes the function
+    of the original lax.conv path (space-to-depth, then a 3x3 convolution) with the same
+    parameter tree and initial values: outputs and gradients agree to float rounding."""
+    image, s2d = _both_conv1_paths()
+    rng = np.random.default_rng(3)
+    x = jnp.asarray(rng.uniform(-0.5, 0.5, (4, 64, 64, 3)), jnp.float32)
+    xy, t = jnp.asarray(rng.uniform(0, 1, (4, 2)), jnp.float32), jnp.ones((4, 2))
+    params = image.init(jax.random.key(0), x, xy, t)["params"]
+    shapes = jax.eval_shape(s2d.init, jax.random.key(0), x, xy, t)["params"]
+    assert jax.tree.map(jnp.shape, params) == jax.tree.map(jnp.shape, shapes)
+    jax.tree.map(np.testing.assert_array_equal,  # conv1 starts from the same values
+                 *(model.Conv1(8, path).init(jax.random.key(2), x[:1])
+                   for path in model.CONV1_PATHS))
+    np.testing.assert_allclose(image.apply({"params": params}, x, xy, t),
+                               s2d.apply({"params": params}, x, xy, t), atol=1e-6)
+
+    def grads(net):
+        return jax.jit(jax.grad(lambda p: jnp.sum(net.apply({"params": p}, x, xy, t) ** 2)))(
+            params)
+
+    g_image, g_s2d = grads(image), grads(s2d)
+    scale = max(float(jnp.max(jnp.abs(g))) for g in jax.tree.leaves(g_s2d))
+    jax.tree.map(lambda a, b: np.testing.assert_allclose(a, b, atol=1e-5 * scale),
+                 g_image, g_s2d)
+    # The kernel rearrangement alone: one block's channel (r, s, c) is pixel (r, s), colour c.
+    k = jnp.arange(3 * 3 * 48 * 2, dtype=jnp.float32).reshape(3, 3, 48, 2)
+    k12 = model.conv1_kernel_on_image(k)
+    assert k12.shape == (12, 12, 3, 2)
+    np.testing.assert_array_equal(k12[4 * 2 + 1, 4 * 0 + 3, 2], k[2, 0, (1 * 4 + 3) * 3 + 2])
+
+
+def test_conv1_paths_agree_in_bfloat16_and_reject_unknown_paths():
+    image, s2d = _both_conv1_paths(jnp.bfloat16)
+    x = jnp.asarray(np.random.default_rng(4).uniform(-0.5, 0.5, (3, 64, 64, 3)), jnp.float32)
+    params = image.init(jax.random.key(1), x, jnp.zeros((3, 2)), jnp.ones((3, 2)))
+    a = image.apply(params, x, jnp.zeros((3, 2)), jnp.ones((3, 2)))
+    b = s2d.apply(params, x, jnp.zeros((3, 2)), jnp.ones((3, 2)))
+    assert a.dtype == b.dtype == jnp.float32
+    np.testing.assert_allclose(a, b, atol=2e-2)
+    with pytest.raises(ValueError, match="conv1 path"):
+        model.RepeatabilityPredictor(num_timestamps=2, conv1_path="im2col").init(
+            jax.random.key(0), x, jnp.zeros((3, 2)), jnp.ones((3, 2)))
