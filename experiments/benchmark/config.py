@@ -101,6 +101,10 @@ class Variant:
       dtype: patch-encoder dtype (``config.model.dtype``, jax).
       compile: ``torch.compile`` the module (torch).
       predictor_api: predict through ``rp_jax.predict.Predictor`` as shipped (jax, predict).
+      malloc: ``rp_jax.platform.tune_malloc()`` in the worker (what ``configure_cpu`` does;
+        jax or torch).
+      conv1: ``RepeatabilityPredictor.conv1_path`` (jax); empty: the model's default.
+      autocast: run the step under ``torch.autocast("cpu", dtype=torch.bfloat16)`` (torch).
       description: one line for the report.
     """
 
@@ -111,6 +115,9 @@ class Variant:
     dtype: str = "float32"
     compile: bool = False
     predictor_api: bool = False
+    malloc: bool = False
+    conv1: str = ""
+    autocast: bool = False
     description: str = ""
 
 
@@ -126,15 +133,37 @@ VARIANTS: dict[str, Variant] = {
             "jax",
             2,
             True,
-            description="JAX, 2 devices + YNN fusion flag (rp_jax.platform.configure_cpu default)",
+            conv1="space_to_depth",
+            description="JAX, 2 devices + YNN fusion flag, conv1 after the space-to-depth "
+            "transpose, glibc's default malloc (the previous default)",
         ),
         Variant(
-            "jax_2dev_ynn_bf16",
+            "jax_2dev_ynn_malloc_s2d",
+            "jax",
+            2,
+            True,
+            malloc=True,
+            conv1="space_to_depth",
+            description="JAX, 2 devices + YNN + tune_malloc, conv1 after the space-to-depth "
+            "transpose",
+        ),
+        Variant(
+            "jax_2dev_ynn_malloc",
+            "jax",
+            2,
+            True,
+            malloc=True,
+            description="JAX, 2 devices + YNN + tune_malloc (rp_jax.platform.configure_cpu "
+            "default), conv1 as a 12x12 stride-4 convolution of the image (model default)",
+        ),
+        Variant(
+            "jax_2dev_ynn_malloc_bf16",
             "jax",
             2,
             True,
             "bfloat16",
-            description="JAX, 2 devices + YNN, bfloat16 patch encoder",
+            malloc=True,
+            description="JAX, configure_cpu defaults, bfloat16 patch encoder",
         ),
         Variant(
             "jax_predictor_api",
@@ -142,9 +171,22 @@ VARIANTS: dict[str, Variant] = {
             2,
             True,
             predictor_api=True,
+            malloc=True,
             description="rp_jax.predict.Predictor as shipped, after configure_cpu()",
         ),
         Variant("torch_eager", "torch", description="PyTorch 2 threads, eager"),
+        Variant(
+            "torch_eager_malloc",
+            "torch",
+            malloc=True,
+            description="PyTorch 2 threads, eager, with rp_jax.platform.tune_malloc()",
+        ),
+        Variant(
+            "torch_bf16",
+            "torch",
+            autocast=True,
+            description="PyTorch 2 threads, eager, torch.autocast('cpu', bfloat16)",
+        ),
         Variant(
             "torch_compile", "torch", compile=True, description="PyTorch 2 threads, torch.compile"
         ),
@@ -152,16 +194,17 @@ VARIANTS: dict[str, Variant] = {
 }
 # Which variant stands for "ours" and for "peer" in the top-level ratio: what a user gets
 # by default from each (configure_cpu() on this project, eager mode in PyTorch).
-OURS_DEFAULT = "jax_2dev_ynn"
+OURS_DEFAULT = "jax_2dev_ynn_malloc"
 PEER_DEFAULT = "torch_eager"
+_MODEL_VARIANTS = [
+    "jax_1dev",
+    "jax_2dev_ynn",
+    "jax_2dev_ynn_malloc_s2d",
+    "jax_2dev_ynn_malloc",
+    "jax_2dev_ynn_malloc_bf16",
+]
+_PEERS = ["torch_eager", "torch_eager_malloc", "torch_bf16"]
 STAGE_VARIANTS = {
-    "train": ["jax_1dev", "jax_2dev", "jax_2dev_ynn", "jax_2dev_ynn_bf16", "torch_eager"],
-    "predict": [
-        "jax_1dev",
-        "jax_2dev",
-        "jax_2dev_ynn",
-        "jax_2dev_ynn_bf16",
-        "jax_predictor_api",
-        "torch_eager",
-    ],
+    "train": _MODEL_VARIANTS + _PEERS,
+    "predict": _MODEL_VARIANTS + ["jax_predictor_api"] + _PEERS,
 }

@@ -85,6 +85,16 @@ def _fresh_model(size: dict, variant: Variant, batch: int, seed: int = 0):
     return config, records, train.create_train_state(config, T, 100, jax.random.key(seed))
 
 
+def _variant_net(config, variant: Variant, num_timestamps: int):
+    """The Flax module a variant runs: the model of ``config`` with ``variant.conv1`` (the
+    same parameters, another way to compute conv1), or None for the model's default."""
+    if not variant.conv1:
+        return None
+    from rp_jax import model as model_lib
+
+    return model_lib.create_model(config, num_timestamps).clone(conv1_path=variant.conv1)
+
+
 def _batches(records: dict, batch: int, count: int) -> list[dict[str, np.ndarray]]:
     from rp_jax.datasets.input_pipeline import MODEL_KEYS
 
@@ -114,6 +124,9 @@ class JaxTrainBench(ModelBench):
         from rp_jax import platform, train
 
         config, records, state = _fresh_model(self.size, self.variant, self.batch)
+        net = _variant_net(config, self.variant, records["label"].shape[1])
+        if net is not None:
+            state = state.replace(apply_fn=net.apply)
         mesh = platform.make_mesh(config.train.num_devices)
         # FLOPs of one step from XLA's cost analysis, on one device without sharding.
         lowered = jax.jit(lambda s, b: train.train_step(s, b, config)).lower(
@@ -155,6 +168,7 @@ class JaxPredictBench(ModelBench):
         from jax.sharding import NamedSharding
         from jax.sharding import PartitionSpec as P
 
+        from rp_jax import model as model_lib
         from rp_jax import platform, predict, time_encoding
         from rp_jax import schedule as schedule_lib
 
@@ -175,7 +189,11 @@ class JaxPredictBench(ModelBench):
         for b in _batches({**records, "time_features": tf}, self.batch, self.steps):
             self.inputs.append((b["patch"], b["xy_normalized"], tf[: self.batch]))
 
+        net = _variant_net(config, self.variant, records["label"].shape[1])
+
         def fn(p, x, xy, t):
+            if net is not None:  # what predict.repeatability does, with the variant's module
+                return net.apply({"params": p}, model_lib.preprocess_patches(x), xy, t)
             return predict.repeatability(p, x, xy, t, config=config)
 
         flops = _cost_flops(jax.jit(fn).lower(params, *self.inputs[0]).compile())
@@ -329,23 +347,31 @@ class TorchBench(ModelBench):
 
     def run_steps(self) -> None:
         tr, torch = self.tr, self.torch
+        autocast = self.variant.autocast
         if self.stage == "train":
             for b in self.batches:
                 loss = tr.train_step(
-                    self.net, self.optimizer, {k: torch.from_numpy(v) for k, v in b.items()}
+                    self.net,
+                    self.optimizer,
+                    {k: torch.from_numpy(v) for k, v in b.items()},
+                    autocast=autocast,
                 )
             float(loss)
             return
-        with torch.inference_mode():
+        with torch.inference_mode(), tr.autocast_context(autocast):
             for b in self.batches:
                 t = tr.encode_time_of_day(
                     torch.from_numpy(b["hour"]), torch.from_numpy(b["minute"])
                 )
-                self.last = self.net(
-                    tr.preprocess_patches(torch.from_numpy(b["patch"])),
-                    torch.from_numpy(b["xy_normalized"]),
-                    t,
-                ).numpy()
+                self.last = (
+                    self.net(
+                        tr.preprocess_patches(torch.from_numpy(b["patch"])),
+                        torch.from_numpy(b["xy_normalized"]),
+                        t,
+                    )
+                    .float()
+                    .numpy()
+                )
 
 
 def make_bench(stage: str, variant: Variant, size: dict) -> ModelBench:

@@ -26,6 +26,7 @@ cyclic time-of-day encoding (``rp_jax.time_encoding``) done inside the step as i
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Mapping
 
@@ -37,6 +38,7 @@ from torch import nn
 __all__ = [
     "GEM_EPS",
     "TorchRepeatabilityPredictor",
+    "autocast_context",
     "encode_time_of_day",
     "load_flax_params",
     "make_optimizer",
@@ -183,11 +185,20 @@ def make_optimizer(
     )
 
 
+def autocast_context(enabled: bool):
+    """``torch.autocast("cpu", dtype=torch.bfloat16)`` when ``enabled`` (PyTorch's mixed
+    precision on a CPU: convolutions and linear layers in bfloat16), else a no-op."""
+    if enabled:
+        return torch.autocast("cpu", dtype=torch.bfloat16)
+    return contextlib.nullcontext()
+
+
 def train_step(
     module: nn.Module,
     optimizer: torch.optim.Optimizer,
     batch: Mapping[str, torch.Tensor],
     grad_clip: float = 1.0,
+    autocast: bool = False,
 ) -> torch.Tensor:
     """One AdamW step on the masked MSE; the peer of ``rp_jax.train.train_step``.
 
@@ -197,17 +208,20 @@ def train_step(
       batch: tensors ``patch`` uint8 [B,64,64,3], ``xy_normalized``, ``hour``, ``minute``,
         ``label``, ``label_mask``, ``mask``.
       grad_clip: global-norm clipping threshold.
+      autocast: forward and loss under bfloat16 autocast (``autocast_context``); the
+        backward pass follows the forward's dtypes, the parameters stay float32.
 
     Returns:
       The loss before the step (a 0-d tensor).
     """
     optimizer.zero_grad(set_to_none=True)
-    pred = module(
-        preprocess_patches(batch["patch"]),
-        batch["xy_normalized"],
-        encode_time_of_day(batch["hour"], batch["minute"]),
-    )
-    loss = masked_mse(pred, batch["label"], batch["label_mask"], batch["mask"])
+    with autocast_context(autocast):
+        pred = module(
+            preprocess_patches(batch["patch"]),
+            batch["xy_normalized"],
+            encode_time_of_day(batch["hour"], batch["minute"]),
+        )
+        loss = masked_mse(pred.float(), batch["label"], batch["label_mask"], batch["mask"])
     loss.backward()
     torch.nn.utils.clip_grad_norm_(module.parameters(), grad_clip)
     optimizer.step()

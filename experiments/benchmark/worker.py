@@ -93,6 +93,10 @@ def main(argv: list[str]) -> int:
             _send(groundtruth_once(int(what), size))
             return 0
         variant = VARIANTS[what]
+        if variant.malloc:
+            from rp_jax.platform import tune_malloc
+
+            tune_malloc()
         if variant.impl == "jax":
             import jax
 

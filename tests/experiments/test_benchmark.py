@@ -349,3 +349,68 @@ def test_match_stage_times_both_paths_and_the_scaling(tmp_path):
     assert scaling["3"]["bf16"]["peak_rss_mb"] > 0
     assert "Scaling with the images of a viewpoint" in md and "extrapolated" in md
 
+
+
+@needs_torch
+def test_torch_bf16_autocast_peer_trains_and_predicts():
+    """The bfloat16-autocast peer row: the same module and step under torch.autocast; its
+    predictions stay within bfloat16 rounding of the float32 ones, and a step updates the
+    float32 parameters."""
+    import jax
+
+    from rp_jax.configs import default
+    from rp_jax.train import create_train_state
+
+    params = create_train_state(default.get_config(), 5, 1, jax.random.key(0)).params
+    module = tr.load_flax_params(tr.TorchRepeatabilityPredictor(5, 2), params)
+    rng = np.random.default_rng(0)
+    batch = {
+        "patch": torch.from_numpy(rng.integers(0, 256, (4, 64, 64, 3), dtype=np.uint8)),
+        "xy_normalized": torch.rand(4, 2),
+        "hour": torch.tensor([0, 6, 12, 18]),
+        "minute": torch.tensor([0, 15, 30, 45]),
+        "label": torch.rand(4, 5),
+        "label_mask": torch.ones(4, 5, dtype=torch.bool),
+        "mask": torch.ones(4, dtype=torch.bool),
+    }
+    inputs = (tr.preprocess_patches(batch["patch"]), batch["xy_normalized"],
+              tr.encode_time_of_day(batch["hour"], batch["minute"]))
+    with torch.no_grad():
+        fp32 = module(*inputs)
+        with tr.autocast_context(True):
+            bf16 = module(*inputs).float()
+    assert float((fp32 - bf16).abs().max()) < 2e-2
+    before = module.fc6.weight.detach().clone()
+    loss = tr.train_step(module, tr.make_optimizer(module, 1e-2, 0.0), batch, autocast=True)
+    assert np.isfinite(float(loss)) and module.fc6.weight.dtype == torch.float32
+    assert not torch.equal(before, module.fc6.weight)
+
+
+@needs_torch
+def test_layer_profile_table():
+    from experiments.benchmark import layer_profile
+
+    rows = layer_profile.profile_layers(batch=2, repeats=1, inner=1,
+                                        layers=["conv1 (image)", "conv2"])
+    assert [(r["layer"], r["pass"]) for r in rows] == [
+        ("conv1 (image)", "fwd"), ("conv1 (image)", "fwd+bwd"), ("conv2", "fwd"),
+        ("conv2", "fwd+bwd")]
+    assert all(r["jax_ms"] > 0 and r["torch_ms"] > 0 and r["ratio"] > 0 for r in rows)
+    table = layer_profile.format_table(rows, 2, 1)
+    assert table.count("\n| conv") == 4 and "JAX / PyTorch" in table
+
+
+def test_tune_malloc_in_a_fresh_process():
+    """configure_cpu's allocator setting applies (glibc) and leaves results unchanged; in a
+    subprocess, so that this test process keeps glibc's defaults."""
+    import os
+    import platform as host
+    import subprocess
+    import sys
+
+    code = ("import numpy as np; from rp_jax import platform; "
+            "a = np.arange(50_000_000, dtype=np.float32).sum(); ok = platform.tune_malloc(); "
+            "b = np.arange(50_000_000, dtype=np.float32).sum(); print(ok, a == b)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    assert out.stdout.split() == [str(host.libc_ver()[0] == "glibc"), "True"]
