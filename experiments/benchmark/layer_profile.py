@@ -1,19 +1,22 @@
 """Per-layer profile of the repeatability predictor (Sec. III-B): each layer of the patch
 encoder and the fc head, forwards and forwards + backwards, JAX against PyTorch on the same
-shapes and weights, in one process and in interleaved rounds.
+shapes and weights, in interleaved rounds.
 
-    python -m experiments.benchmark.layer_profile [--batch 256] [--repeats 7] [--out FILE]
+    python -m experiments.benchmark.layer_profile [--size full|tiny] [--repeats 7] [--out FILE]
 
-Prints a markdown table (and writes it to ``--out``): milliseconds per batch (median over
-rounds), GFLOP/s and the speed ratio JAX / PyTorch measured in the same rounds.
+Prints a markdown table (and writes it to ``--out``): milliseconds per batch (the train
+batch of the size: 256 at full size; median over rounds), GFLOP/s and the speed ratio
+JAX / PyTorch measured in the same rounds.
 
-Both frameworks run in this one process on the same cores: JAX as one XLA device with
-``rp_jax.platform.configure_cpu``'s XLA flag and ``tune_malloc`` (which the PyTorch side then
-shares), PyTorch eager with 2 threads. The whole batch goes through one JAX device here,
-whereas the train stage shards it over 2 devices, so the sum of the rows is not the train
-step's time; the rows say where each framework is fast. "fwd+bwd" is the forward pass and
-the vector-Jacobian product for a given output cotangent: gradients of the layer's weights
-and bias, and of its input except for the first layer (whose input is data).
+Each framework runs in its own worker process (``worker.py``), as the train stage runs them:
+JAX with ``configure_cpu``'s settings (the ``jax_2dev_ynn_malloc`` variant; a layer here is
+jitted without sharding, so it runs on one device with the 2-thread pool), PyTorch eager with
+2 threads (``torch_eager``). Two frameworks in one process would fight over the cores (one's
+idle threads spinning while the other works). The whole batch goes through one JAX device
+here, whereas the train stage shards it over 2, so the rows do not add up to the train
+step's time; they say where each framework is fast. "fwd+bwd" is the forward pass and the
+vector-Jacobian product for a given output cotangent: gradients of the layer's weights and
+bias, and of its input except for the first layer (whose input is data).
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LAYERS", "profile_layers", "format_table", "main"]
+__all__ = ["LAYERS", "LayerBench", "profile_layers", "format_table", "main"]
 
 # (name, description, input shape without the batch, forward GFLOP per sample, input grad)
 LAYERS = [
@@ -138,93 +141,159 @@ def _timed(fn: Callable, sync: Callable, inner: int) -> float:
     return (time.perf_counter() - t0) / inner
 
 
-def profile_layers(batch: int = 256, repeats: int = 7, inner: int = 3, seed: int = 0,
+class LayerBench:
+    """Inside a worker: every (layer, pass) of one framework, warmed up;
+    ``measure("LAYER|PASS")`` times ``inner`` calls of it. Both sides build the same weights
+    and inputs from ``seed``."""
+
+    def __init__(self, variant, size: dict, seed: int = 0, inner: int = 3,
+                 layers: list[str] | None = None):
+        self.impl, self.batch = variant.impl, size["train_batch"]
+        self.seed, self.inner, self.layers = seed, inner, layers
+
+    def setup(self) -> dict:
+        import jax
+
+        from rp_jax import model as model_lib
+
+        T = 21
+        net = model_lib.RepeatabilityPredictor(num_timestamps=T)
+        params = model_lib.init_params(net, jax.random.key(self.seed), 2)
+        self.calls = {}
+        if self.impl == "jax":
+            self._build_jax(params)
+        else:
+            from experiments.benchmark import torch_reference as tr
+
+            self._build_torch(tr.load_flax_params(tr.TorchRepeatabilityPredictor(T, 2), params))
+        for fn, sync in self.calls.values():  # compile and warm up
+            sync(fn())
+        return {"keys": list(self.calls)}
+
+    def _inputs(self):
+        """Per layer: input x (NHWC / flat, numpy) and output cotangent dy, the same on both
+        sides (drawn in LAYERS order from one generator)."""
+        rng = np.random.default_rng(self.seed)
+        out_shapes = {"input": (16, 16, 48), "conv1 (s2d)": (16, 16, 64),
+                      "conv1 (image)": (16, 16, 64), "conv2": (8, 8, 64), "conv3": (4, 4, 128),
+                      "proj": (128,), "head": (21,)}
+        for name, _, shape, _, _ in LAYERS:
+            if name == "input":
+                x = rng.integers(0, 256, (self.batch, *shape), dtype=np.uint8)
+            else:
+                x = (rng.standard_normal((self.batch, *shape)) * 0.5).astype(np.float32)
+            dy = rng.standard_normal((self.batch, *out_shapes[name])).astype(np.float32)
+            if self.layers is None or name in self.layers:
+                yield name, x, dy
+
+    def _build_jax(self, params) -> None:
+        import jax
+        import jax.numpy as jnp
+
+        layers = _jax_layers(params, 21)
+        flags = {name: (gflop, input_grad) for name, _, _, gflop, input_grad in LAYERS}
+        for name, x, dy in self._inputs():
+            f, w = layers[name]
+            gflop, input_grad = flags[name]
+            xj, dyj = jnp.asarray(x), jnp.asarray(dy)
+            jf = jax.jit(f)
+            self.calls[f"{name}|fwd"] = (lambda jf=jf, w=w, xj=xj: jf(w, xj),
+                                         jax.block_until_ready)
+            if not gflop:
+                continue
+
+            def vjp(w, x, dy, f=f, input_grad=input_grad):
+                if input_grad:
+                    return jax.vjp(f, w, x)[1](dy)
+                return jax.vjp(lambda w: f(w, x), w)[1](dy)
+
+            jb = jax.jit(vjp)
+            self.calls[f"{name}|fwd+bwd"] = (lambda jb=jb, w=w, xj=xj, d=dyj: jb(w, xj, d),
+                                             jax.block_until_ready)
+
+    def _build_torch(self, module) -> None:
+        import torch
+
+        torch.set_num_threads(2)
+        layers = _torch_layers(module)
+        params_t = list(module.parameters())
+        flags = {name: (gflop, input_grad) for name, _, _, gflop, input_grad in LAYERS}
+        for name, x, dy in self._inputs():
+            gflop, input_grad = flags[name]
+            f = layers[name]
+            # PyTorch takes NCHW maps: the same numbers, moved channels-first once, outside.
+            xt, dyt = torch.from_numpy(x), torch.from_numpy(dy)
+            if xt.ndim == 4 and name != "input":
+                xt = xt.permute(0, 3, 1, 2).contiguous()
+            if dyt.ndim == 4 and name != "input":
+                dyt = dyt.permute(0, 3, 1, 2).contiguous()
+
+            def fwd(f=f, xt=xt):
+                with torch.no_grad():
+                    return f(xt)
+
+            self.calls[f"{name}|fwd"] = (fwd, lambda out: None)
+            if not gflop:
+                continue
+
+            def bwd(f=f, xt=xt, dyt=dyt, input_grad=input_grad):
+                xin = xt.detach().requires_grad_(input_grad)
+                for q in params_t:
+                    q.grad = None
+                f(xin).backward(dyt)
+                return xin.grad
+
+            self.calls[f"{name}|fwd+bwd"] = (bwd, lambda out: None)
+
+    def measure(self, key: str) -> dict:
+        fn, sync = self.calls[key]
+        return {"seconds": _timed(fn, sync, self.inner)}
+
+
+def profile_layers(size_name: str = "full", repeats: int = 7,
                    layers: list[str] | None = None) -> list[dict]:
-    """Time every layer of ``LAYERS`` (or the named ``layers``) in both frameworks; see the
-    module docstring.
+    """Time every layer of ``LAYERS`` (or the named ``layers``) in both frameworks, each in
+    its worker process, alternating JAX and PyTorch round by round; see the module docstring.
 
     Returns:
       One dict per (layer, pass): layer, pass ("fwd" / "fwd+bwd"), jax_ms, torch_ms
       (medians), jax_gflops, torch_gflops, ratio (median over rounds of torch time / JAX
       time: above 1 JAX is faster), description.
     """
-    import jax
-    import jax.numpy as jnp
-    import torch
+    from experiments.benchmark.config import OURS_DEFAULT, PEER_DEFAULT, SIZES, VARIANTS
+    from experiments.benchmark.orchestration import Worker
 
-    from experiments.benchmark import torch_reference as tr
-    from rp_jax import model as model_lib
-
-    torch.set_num_threads(2)
-    T = 21
-    net = model_lib.RepeatabilityPredictor(num_timestamps=T)
-    params = model_lib.init_params(net, jax.random.key(seed), 2)
-    module = tr.load_flax_params(tr.TorchRepeatabilityPredictor(T, 2), params)
-    jl, tl = _jax_layers(params, T), _torch_layers(module)
-    rng = np.random.default_rng(seed)
-    params_t = list(module.parameters())
-    rows = []
-    for name, desc, shape, gflop, input_grad in LAYERS:
-        if layers is not None and name not in layers:
-            continue
-        if name == "input":
-            x = rng.integers(0, 256, (batch, *shape), dtype=np.uint8)
-        else:
-            x = rng.standard_normal((batch, *shape)).astype(np.float32) * 0.5
-        f, w = jl[name]
-        xj = jnp.asarray(x)
-        y = jax.jit(f)(w, xj)
-        dy = jnp.asarray(rng.standard_normal(y.shape).astype(np.float32))
-        jf = jax.jit(f)
-
-        def vjp(w, x, dy, f=f, input_grad=input_grad):
-            if input_grad:
-                return jax.vjp(f, w, x)[1](dy)
-            return jax.vjp(lambda w: f(w, x), w)[1](dy)
-
-        jb = jax.jit(vjp)
-        # PyTorch takes NCHW maps; the same numbers, moved channels-first once, outside.
-        xt = torch.from_numpy(np.array(xj))
-        if xt.ndim == 4 and name != "input":
-            xt = xt.permute(0, 3, 1, 2).contiguous()
-        tf = tl[name]
-        yt = tf(xt)
-        dyt = torch.from_numpy(np.asarray(rng.standard_normal(tuple(yt.shape)), np.float32))
-        def torch_fwd(tf=tf, xt=xt):
-            with torch.no_grad():
-                return tf(xt)
-
-        def torch_bwd(tf=tf, xt=xt, dyt=dyt, input_grad=input_grad):
-            xin = xt.detach().requires_grad_(input_grad)
-            for p in params_t:
-                p.grad = None
-            tf(xin).backward(dyt)
-            return xin.grad
-
-        passes = [("fwd", lambda jf=jf, w=w, xj=xj: jf(w, xj), torch_fwd)]
-        if gflop:
-            passes.append(("fwd+bwd", lambda jb=jb, w=w, xj=xj, dy=dy: jb(w, xj, dy),
-                           torch_bwd))
-        for pname, jcall, tcall in passes:
-            jax.block_until_ready(jcall())  # compile and warm up
-            tcall()
-            jt, tt = [], []
-            for r in range(repeats):
-                order = ("jax", "torch") if r % 2 == 0 else ("torch", "jax")
-                for side in order:
-                    if side == "jax":
-                        jt.append(_timed(jcall, jax.block_until_ready, inner))
-                    else:
-                        tt.append(_timed(tcall, lambda out: None, inner))
-            jt, tt = np.asarray(jt), np.asarray(tt)
-            flop = gflop * batch * (1 if pname == "fwd" else (3 if input_grad else 2))
-            rows.append({
-                "layer": name, "pass": pname, "description": desc,
-                "jax_ms": float(np.median(jt) * 1e3), "torch_ms": float(np.median(tt) * 1e3),
-                "jax_gflops": flop / float(np.median(jt)) if flop else float("nan"),
-                "torch_gflops": flop / float(np.median(tt)) if flop else float("nan"),
-                "ratio": float(np.median(tt / jt)),
-            })
+    batch = SIZES[size_name]["train_batch"]
+    workers = {}
+    try:
+        for side, name in (("jax", OURS_DEFAULT), ("torch", PEER_DEFAULT)):
+            workers[side] = Worker("layers", VARIANTS[name], size_name)
+        keys = [workers[side].read()["ready"]["keys"] for side in workers][0]
+        rows = []
+        for name, desc, _, gflop, input_grad in LAYERS:
+            if layers is not None and name not in layers:
+                continue
+            for pname in ("fwd", "fwd+bwd"):
+                key = f"{name}|{pname}"
+                if key not in keys:
+                    continue
+                times: dict[str, list[float]] = {"jax": [], "torch": []}
+                for r in range(repeats):
+                    for side in ("jax", "torch") if r % 2 == 0 else ("torch", "jax"):
+                        times[side].append(workers[side].request(f"measure {key}")["seconds"])
+                jt, tt = np.asarray(times["jax"]), np.asarray(times["torch"])
+                flop = gflop * batch * (1 if pname == "fwd" else (3 if input_grad else 2))
+                rows.append({
+                    "layer": name, "pass": pname, "description": desc,
+                    "jax_ms": float(np.median(jt) * 1e3),
+                    "torch_ms": float(np.median(tt) * 1e3),
+                    "jax_gflops": flop / float(np.median(jt)) if flop else float("nan"),
+                    "torch_gflops": flop / float(np.median(tt)) if flop else float("nan"),
+                    "ratio": float(np.median(tt / jt)),
+                })
+    finally:
+        for w in workers.values():
+            w.close()
     return rows
 
 
@@ -251,22 +320,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.benchmark.layer_profile",
                                      description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--batch", type=int, default=256, help="batch size (default 256)")
+    parser.add_argument("--size", choices=("tiny", "full"), default="full",
+                        help="tiny (batch 16, tests) or full (batch 256, default)")
     parser.add_argument("--repeats", type=int, default=7, help="interleaved rounds")
     parser.add_argument("--out", default=None, help="also write the table to this file")
     args = parser.parse_args(argv)
-    if args.batch < 1 or args.repeats < 1:
-        parser.error("--batch and --repeats must be >= 1")
-    from rp_jax import platform
+    if args.repeats < 1:
+        parser.error("--repeats must be >= 1")
+    from experiments.benchmark.config import SIZES
 
-    # configure_cpu's XLA flag and allocator, on one device (set before JAX starts).
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "ynn_fusion_type" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} {platform.YNN_FLAG}".strip()
-    platform.tune_malloc()
     load = os.getloadavg()[0]
-    rows = profile_layers(args.batch, args.repeats)
-    table = format_table(rows, args.batch, args.repeats)
+    rows = profile_layers(args.size, args.repeats)
+    table = format_table(rows, SIZES[args.size]["train_batch"], args.repeats)
     table += f"\n\nLoad average (1 min) before -> after: {load:.1f} -> {os.getloadavg()[0]:.1f}."
     print(table)
     if args.out:

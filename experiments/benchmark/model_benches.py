@@ -376,6 +376,10 @@ class TorchBench(ModelBench):
 
 def make_bench(stage: str, variant: Variant, size: dict) -> ModelBench:
     """The bench of a (stage, variant) pair (called inside a worker)."""
+    if stage == "layers":  # experiments.benchmark.layer_profile, either framework
+        from experiments.benchmark.layer_profile import LayerBench
+
+        return LayerBench(variant, size)
     if variant.impl == "torch":
         return TorchBench(stage, variant, size)
     if stage == "train":

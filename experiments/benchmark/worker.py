@@ -8,6 +8,9 @@ set JAX's device count (from ``RP_BENCH_NUM_DEVICES``; XLA flags come in the env
 before JAX initialises, build and warm up the bench, print ``@@BENCH {"ready": {...}}``,
 then answer each ``measure`` line on stdin with ``@@BENCH {"speed": ...}`` until ``quit``.
 
+The per-layer profile (``layer_profile.py``) uses the same protocol with stage ``layers``,
+and ``measure LAYER|PASS`` lines.
+
 Ground truth::
 
     python -m experiments.benchmark.worker groundtruth NUM_IMAGES SIZE
@@ -115,9 +118,10 @@ def main(argv: list[str]) -> int:
         command = line.strip()
         if command == "quit":
             break
-        if command == "measure":
-            try:
-                _send(bench.measure())
+        if command == "measure" or command.startswith("measure "):
+            try:  # "measure KEY": one item of a bench with several (layer_profile)
+                key = command[len("measure"):].strip()
+                _send(bench.measure(key) if key else bench.measure())
             except Exception as e:  # noqa: BLE001 - as above
                 traceback.print_exc()
                 _send({"error": f"{type(e).__name__}: {e}"})

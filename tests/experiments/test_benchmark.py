@@ -387,17 +387,21 @@ def test_torch_bf16_autocast_peer_trains_and_predicts():
 
 
 @needs_torch
-def test_layer_profile_table():
+def test_layer_profile_benches_and_table():
+    """Both sides of the per-layer profile build the same layer and time it (in this process
+    here; the command runs each in its worker); the table has one row per (layer, pass)."""
     from experiments.benchmark import layer_profile
+    from experiments.benchmark.config import VARIANTS
 
-    rows = layer_profile.profile_layers(batch=2, repeats=1, inner=1,
-                                        layers=["conv1 (image)", "conv2"])
-    assert [(r["layer"], r["pass"]) for r in rows] == [
-        ("conv1 (image)", "fwd"), ("conv1 (image)", "fwd+bwd"), ("conv2", "fwd"),
-        ("conv2", "fwd+bwd")]
-    assert all(r["jax_ms"] > 0 and r["torch_ms"] > 0 and r["ratio"] > 0 for r in rows)
-    table = layer_profile.format_table(rows, 2, 1)
-    assert table.count("\n| conv") == 4 and "JAX / PyTorch" in table
+    for name in ("jax_2dev_ynn_malloc", "torch_eager"):
+        bench = layer_profile.LayerBench(VARIANTS[name], SIZES["tiny"], inner=1,
+                                         layers=["conv2"])
+        assert bench.setup()["keys"] == ["conv2|fwd", "conv2|fwd+bwd"]
+        assert bench.measure("conv2|fwd+bwd")["seconds"] > 0
+    rows = [{"layer": "conv2", "pass": p, "description": "d", "jax_ms": 1.0, "torch_ms": 2.0,
+             "jax_gflops": 3.0, "torch_gflops": 1.5, "ratio": 2.0} for p in ("fwd", "fwd+bwd")]
+    table = layer_profile.format_table(rows, 16, 1)
+    assert table.count("\n| conv2 |") == 2 and "JAX / PyTorch" in table
 
 
 def test_tune_malloc_in_a_fresh_process():
