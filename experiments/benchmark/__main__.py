@@ -4,7 +4,9 @@ summarization of V-A and localization of V-B).
     python -m experiments.benchmark [STAGE ...] [--out DIR] [--size tiny|full] [--repeats N]
                                     [--quiet]
 
-Stages: train, predict, match, groundtruth, summarize, localize (default: all).
+Stages: train, predict, layers, match, groundtruth, summarize, localize (default: all).
+
+* layers: per-layer forward and forward+backward times, JAX vs PyTorch (``layer_profile``);
 
 * summarize: seconds and peak memory to summarize synthetic maps of 10^4 .. 10^7 points for
   one timestamp (repeatability cached per point), ours vs the K-cover baseline;

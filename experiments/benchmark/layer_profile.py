@@ -4,9 +4,10 @@ shapes and weights, in interleaved rounds.
 
     python -m experiments.benchmark.layer_profile [--size full|tiny] [--repeats 7] [--out FILE]
 
-Prints a markdown table (and writes it to ``--out``): milliseconds per batch (the train
-batch of the size: 256 at full size; median over rounds), GFLOP/s and the speed ratio
-JAX / PyTorch measured in the same rounds.
+Also the ``layers`` stage of ``python -m experiments.benchmark`` (its section of
+``benchmark.md``). Prints a markdown table (and writes it to ``--out``): milliseconds per
+batch (the train batch of the size: 256 at full size; median over rounds), GFLOP/s and the
+speed ratio JAX / PyTorch measured in the same rounds.
 
 Each framework runs in its own worker process (``worker.py``), as the train stage runs them:
 JAX with ``configure_cpu``'s settings (the ``jax_2dev_ynn_malloc`` variant; a layer here is
@@ -30,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LAYERS", "LayerBench", "profile_layers", "format_table", "main"]
+__all__ = ["LAYERS", "LayerBench", "format_table", "main", "profile_layers",
+           "run_layers_stage"]
 
 # (name, description, input shape without the batch, forward GFLOP per sample, input grad)
 LAYERS = [
@@ -295,6 +297,22 @@ def profile_layers(size_name: str = "full", repeats: int = 7,
         for w in workers.values():
             w.close()
     return rows
+
+
+def run_layers_stage(size_name: str, repeats: int, progress: bool = True) -> dict:
+    """The ``layers`` stage of ``python -m experiments.benchmark``: ``profile_layers`` as a
+    report entry (``report.py`` renders it with ``format_table``)."""
+    from experiments.benchmark.config import OURS_DEFAULT, PEER_DEFAULT, SIZES
+
+    del progress  # one short pass; no bar
+    return {
+        "unit": "ms per batch",
+        "batch": SIZES[size_name]["train_batch"],
+        "repeats": repeats,
+        "jax_variant": OURS_DEFAULT,
+        "torch_variant": PEER_DEFAULT,
+        "rows": profile_layers(size_name, repeats),
+    }
 
 
 def format_table(rows: list[dict], batch: int, repeats: int) -> str:

@@ -326,6 +326,8 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
             "|---|---|---|---|---|---|---|",
         ]
         for stage, e in results.items():
+            if stage == "layers":  # a table of its own, below
+                continue
             unit = e["unit"]
             if e.get("headline_points"):
                 unit += f" ({e['headline_points']:,} points)"
@@ -363,6 +365,14 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
     for stage, e in results.items():
         if stage in ("train", "predict"):
             lines += _model_table(stage, e)
+        elif stage == "layers":
+            from experiments.benchmark.layer_profile import format_table
+
+            lines += ["## layers", "", (
+                f"Per layer, `{e['jax_variant']}` (one device, unsharded) against "
+                f"`{e['torch_variant']}`, each in its worker "
+                "(`python -m experiments.benchmark.layer_profile`)."), "",
+                format_table(e["rows"], e["batch"], e["repeats"]), ""]
         elif stage == "match":
             lines += _match_table(e)
         elif stage == "groundtruth":

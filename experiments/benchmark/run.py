@@ -1,8 +1,8 @@
 """Run benchmark stages and write the report (the library behind ``__main__``).
 
 ``run_benchmark(stages, out_dir, ...)`` is what the command line calls; notebooks and tests
-call it too. Each stage's module (``model_stage``, ``match_stage``, ``groundtruth_stage``,
-``summarize_stage``, ``localize_stage``) says what it measures and how.
+call it too. Each stage's module (``model_stage``, ``layer_profile``, ``match_stage``,
+``groundtruth_stage``, ``summarize_stage``, ``localize_stage``) says what it measures and how.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from pathlib import Path
 from experiments.benchmark import report
 from experiments.benchmark.config import SIZES, STAGE_VARIANTS
 from experiments.benchmark.groundtruth_stage import run_groundtruth_stage
+from experiments.benchmark.layer_profile import run_layers_stage
 from experiments.benchmark.localize_stage import run_localize_stage
 from experiments.benchmark.match_stage import run_match_stage
 from experiments.benchmark.model_stage import run_model_stage
@@ -21,7 +22,7 @@ from experiments.benchmark.summarize_stage import run_summarize_stage
 
 __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 
-ALL_STAGES = ("train", "predict", "match", "groundtruth", "summarize", "localize")
+ALL_STAGES = ("train", "predict", "layers", "match", "groundtruth", "summarize", "localize")
 NOTES = [
     (
         "Each JAX configuration and the PyTorch peer run in their own worker process, started "
@@ -85,6 +86,8 @@ def run_benchmark(
                     ["torch_compile"] if torch_compile else []
                 )
             entry = run_model_stage(stage, size, repeats, variants, progress=progress)
+        elif stage == "layers":
+            entry = run_layers_stage(size, repeats, progress=progress)
         elif stage == "match":
             entry = run_match_stage(size, repeats, progress=progress)
         elif stage == "summarize":

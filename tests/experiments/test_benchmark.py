@@ -402,6 +402,11 @@ def test_layer_profile_benches_and_table():
              "jax_gflops": 3.0, "torch_gflops": 1.5, "ratio": 2.0} for p in ("fwd", "fwd+bwd")]
     table = layer_profile.format_table(rows, 16, 1)
     assert table.count("\n| conv2 |") == 2 and "JAX / PyTorch" in table
+    from experiments.benchmark import report
+
+    md = report.markdown({"layers": {"unit": "ms per batch", "batch": 16, "repeats": 1,
+                                     "jax_variant": "j", "torch_variant": "t", "rows": rows}})
+    assert "## layers" in md and table in md
 
 
 def test_tune_malloc_in_a_fresh_process():
