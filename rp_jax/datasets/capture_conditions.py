@@ -32,7 +32,8 @@ from rp_jax import sun as sunlib
 from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Capture
 
-__all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "location_of"]
+__all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "capture_places",
+           "location_of", "timezone_of"]
 
 # The weather kinds of the schema (the synthetic world's, which a station record maps onto).
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
@@ -55,6 +56,18 @@ def location_of(capture: Capture, dataset: str) -> tuple[float, float] | None:
     if lat is not None and lon is not None:
         return lat, lon
     return _spec_location(dataset)
+
+
+def capture_places(captures: Sequence[Capture], dataset: str) -> dict[str, np.ndarray]:
+    """``latitude``, ``longitude`` float32 [n] of each capture's camera (NaN unknown)."""
+    places = [location_of(c, dataset) or (np.nan, np.nan) for c in captures]
+    return {"latitude": np.array([p[0] for p in places], np.float32),
+            "longitude": np.array([p[1] for p in places], np.float32)}
+
+
+def timezone_of(capture: Capture) -> str:
+    """The IANA name of the zone of the capture's clock, or "" (a fixed offset only)."""
+    return str(getattr(capture.time.tzinfo, "key", "") or "")
 
 
 @functools.lru_cache(maxsize=8)

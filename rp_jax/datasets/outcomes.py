@@ -18,8 +18,11 @@ image or an unreadable one), ``row_image`` int32 [N] (its own image), ``keypoint
 int32 [N]; per image of the viewpoint (every capture, readable or not): ``image_id``,
 ``image_readable``, ``image_time`` int32 [n, 6] (``groundtruth.TIME_FIELDS``, local wall
 clock), ``image_unix_time`` float64, ``image_cycle``, ``image_slot`` and the conditions
-``image_<field>`` of ``capture_conditions.CONDITION_FIELDS`` (NaN / -1 unknown); and
-``viewpoint``. Documented in the design notes' DATA_FORMATS.md.
+``image_<field>`` of ``capture_conditions.CONDITION_FIELDS`` (NaN / -1 unknown), the
+camera's ``image_latitude`` / ``image_longitude`` (NaN unknown); ``viewpoint`` and
+``timezone`` (0-d str: the IANA zone of the images' clock, "" unknown), so a query at any
+instant can be made at the viewpoint's place and clock. Documented in the design notes'
+DATA_FORMATS.md.
 
 ``build(builder)`` writes it from the ground-truth cache the dataset was built with (a
 viewpoint whose outcomes were not cached is matched again; its features are cached), for
@@ -47,7 +50,7 @@ __all__ = ["FORMAT_VERSION", "build", "join", "load", "sidecar_dir", "viewpoint_
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: the camera's place and zone
 SIDECAR_ROOT = "rp_jax_outcomes"
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")
@@ -80,6 +83,9 @@ def viewpoint_outcomes(job) -> dict[str, np.ndarray]:
     sidecar = {k: (np.asarray(out[k])[kept] if k in _ROW_KEYS else out[k]) for k in out}
     conditions = capture_conditions.capture_conditions(captures, job.dataset)
     sidecar.update({f"image_{k}": v for k, v in conditions.items()})
+    places = capture_conditions.capture_places(captures, job.dataset)
+    sidecar.update({f"image_{k}": v for k, v in places.items()})
+    sidecar["timezone"] = np.array(capture_conditions.timezone_of(captures[0]))
     return sidecar
 
 
@@ -118,6 +124,11 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
     jobs = builder.split_jobs(builder.local_download_manager(manual_dir))
     todo = [(job, _file_of(directory, split, job.viewpoint))
             for split, split_jobs in jobs.items() for job in split_jobs]
+    if (directory / _INDEX).is_file() and json.loads(
+            (directory / _INDEX).read_text()).get("format") != FORMAT_VERSION:
+        log.info("%s holds an older format: writing it again", directory)
+        for _, path in todo:
+            path.unlink(missing_ok=True)
     todo = [(job, path) for job, path in todo if not path.exists()]
     bar = tqdm(total=len(todo), desc="outcomes", unit="viewpoint")
     try:
@@ -157,7 +168,8 @@ def load(name: str, split: str, *, config: str = "synthetic",
     """Viewpoint -> its sidecar arrays, for one split of a built dataset.
 
     Raises:
-      FileNotFoundError: no sidecar for the built version (the message gives the command).
+      FileNotFoundError: no sidecar of this format for the built version (the message gives
+        the command that writes it).
     """
     from rp_jax.datasets import loading
     from rp_jax.groundtruth.cache import load_npz
@@ -171,10 +183,14 @@ def load(name: str, split: str, *, config: str = "synthetic",
             f"write them with `python -m rp_jax.datasets outcomes {name} "
             f"{loading.BUILD_FLAGS[config]} --data-dir {Path(builder._data_dir_root)}`")
     index = json.loads(index_path.read_text())
-    if index.get("format") != FORMAT_VERSION or split not in index.get("splits", {}):
-        raise ValueError(f"{index_path}: format {index.get('format')} (expected "
-                         f"{FORMAT_VERSION}), splits {sorted(index.get('splits', {}))}; "
-                         f"delete {directory} and write it again")
+    if index.get("format") != FORMAT_VERSION:
+        raise FileNotFoundError(
+            f"{index_path} is of format {index.get('format')}, not {FORMAT_VERSION}; write it "
+            f"again with `python -m rp_jax.datasets outcomes {name} "
+            f"{loading.BUILD_FLAGS[config]} --data-dir {Path(builder._data_dir_root)}`")
+    if split not in index.get("splits", {}):
+        raise ValueError(f"{index_path} has no split {split!r}; it has "
+                         f"{sorted(index.get('splits', {}))}")
     return {vp: load_npz(_file_of(directory, split, vp)) for vp in index["splits"][split]}
 
 

@@ -46,6 +46,7 @@ def test_sidecar_joins_every_record_and_averages_into_its_label(webcam, capsys):
             assert ((s["image_weather"] >= 0) & (s["image_weather"] < 5)).all()
             assert np.isfinite(s["image_cloud_cover"]).all()
             assert np.isfinite(s["image_sun_elevation_deg"]).all()
+            assert np.isfinite(s["image_latitude"]).all() and str(s["timezone"]).count("/")
     # Written once: a second run rewrites only the index.
     first = {p: p.stat().st_mtime_ns for p in
              outcomes.sidecar_dir(data_dir, "webcam_clipart", TINY, webcam.version).rglob("*.npz")}
