@@ -52,39 +52,40 @@ def test_parse_conditions():
         inputs.parse_conditions("sun,rain")
 
 
-def test_shapes_jit_vmap_grad_and_which_inputs_are_read(tiny):
+@pytest.fixture(scope="module")
+def full_net():
     net = cmodel.ConditionalPredictor(conditions=inputs.CONDITIONS, **SMALL)
-    params = jax.jit(lambda rng: cmodel.init_params(net, rng))(jax.random.key(0))
-    args = (tiny["patches"], tiny["xy"], tiny["capture"], tiny["target"], tiny["category"])
-    apply = jax.jit(net.apply)
-    logits = apply({"params": params}, *args)
-    assert logits.shape == (3, 5) and logits.dtype == jnp.float32
+    return net, jax.jit(lambda rng: cmodel.init_params(net, rng))(jax.random.key(0))
 
-    # One patch encoding, the targets scored one at a time by vmap: the same logits.
+
+def test_shapes_jit_vmap_grad(tiny, full_net):
+    net, params = full_net
+    args = (tiny["patches"], tiny["xy"], tiny["capture"], tiny["target"], tiny["category"])
+
     @jax.jit
-    def encode_once_score_each(params, capture, target, category):
-        code = net.apply({"params": params}, *args[:2], capture, category, method=net.encode)
+    def everything(params):
+        logits = net.apply({"params": params}, *args)
+        # One patch encoding, the targets scored one at a time by vmap.
+        code = net.apply({"params": params}, *args[:3], args[4], method=net.encode)
 
         def one_target(target_k):  # target_k: arrays [B]
             t = {k: v[:, None] for k, v in target_k.items()}
-            return net.apply({"params": params}, code, capture, t, method=net.score)[:, 0]
+            return net.apply({"params": params}, code, args[2], t, method=net.score)[:, 0]
 
-        return code, jax.vmap(one_target, in_axes=1, out_axes=1)(target)
+        per_target = jax.vmap(one_target, in_axes=1, out_axes=1)(args[3])
+        grads = jax.grad(lambda p: cmodel.pair_loss(net.apply({"params": p}, *args),
+                                                    tiny["outcome"]))(params)
+        other = net.apply({"params": params}, *args[:4], jnp.array([1, 2, 3]))
+        return logits, code, per_target, grads, other
 
-    code, per_target = encode_once_score_each(params, tiny["capture"], tiny["target"],
-                                              tiny["category"])
+    logits, code, per_target, grads, other = everything(params)
+    assert logits.shape == (3, 5) and logits.dtype == jnp.float32
     assert code.shape == (3, SMALL["hidden"])
     chex.assert_trees_all_close(per_target, logits, atol=1e-5)
-
-    grads = jax.jit(jax.grad(lambda p: cmodel.pair_loss(net.apply({"params": p}, *args),
-                                                        tiny["outcome"])))(params)
     leaves = jax.tree.leaves(grads)
     assert all(bool(jnp.isfinite(g).all()) for g in leaves)
     assert sum(float(jnp.abs(g).sum()) > 0 for g in leaves) >= len(leaves) - 1  # embed rows
-
-    # The semantic class is read (a category embedding).
-    other = apply({"params": params}, *args[:4], jnp.array([1, 2, 3]))
-    assert not np.allclose(other, logits)
+    assert not np.allclose(other, logits)  # the semantic class is read
 
 
 def test_each_condition_is_read_only_when_selected(tiny):
@@ -94,22 +95,24 @@ def test_each_condition_is_read_only_when_selected(tiny):
         "weather": {**target, "weather": (target["weather"] + 1) % 5,
                     "cloud_cover": 1.0 - target["cloud_cover"]},
     }
-    for conditions in ((), ("sun",), ("weather",), ("sun", "weather")):
-        base = inputs.target_features(capture, target, conditions)
-        base_capture = inputs.capture_features(capture, conditions)
+    target_features = jax.jit(inputs.target_features, static_argnums=2)
+    capture_features = jax.jit(inputs.capture_features, static_argnums=1)
+    first = {k: v[:, 0] for k, v in target.items()}
+    for conditions in ((), ("sun",), ("weather",)):
+        base = target_features(capture, target, conditions)
+        base_capture = capture_features(first, conditions)
         for condition, changed in changes.items():
-            differs = not np.allclose(inputs.target_features(capture, changed, conditions), base)
+            differs = not np.allclose(target_features(capture, changed, conditions), base)
             assert differs == (condition in conditions), (conditions, condition)
             changed_capture = {k: v[:, 0] for k, v in changed.items()}
-            differs = not np.allclose(inputs.capture_features(changed_capture, conditions),
-                                      inputs.capture_features(
-                                          {k: v[:, 0] for k, v in target.items()}, conditions))
+            differs = not np.allclose(capture_features(changed_capture, conditions),
+                                      base_capture)
             assert differs == (condition in conditions), (conditions, condition)
         assert base.shape[:2] == (3, 5) and base_capture.shape[0] == 3
     # Unknown conditions (NaN, -1) encode as zeros with a known flag of 0, never NaN.
     unknown = {**target, "sun_elevation_deg": jnp.full((3, 5), jnp.nan),
                "cloud_cover": jnp.full((3, 5), jnp.nan), "weather": jnp.full((3, 5), -1)}
-    assert np.isfinite(inputs.target_features(capture, unknown, ("sun", "weather"))).all()
+    assert np.isfinite(target_features(capture, unknown, ("sun", "weather"))).all()
 
 
 def test_loss_reads_only_known_pairs():
@@ -138,16 +141,15 @@ def test_t_vector_of_outcomes_is_the_label():
     np.testing.assert_array_equal(vmask, mask)
 
 
-def test_t_vector_at_slot_times_equals_any_time_queries(tiny):
+def test_t_vector_at_slot_times_equals_any_time_queries(tiny, full_net):
     """The paper's T-vector is the continuous model evaluated at the slot times."""
-    net = cmodel.ConditionalPredictor(conditions=("sun", "weather"), **SMALL)
-    params = jax.jit(lambda rng: cmodel.init_params(net, rng))(jax.random.key(2))
+    net, params = full_net
     schedule = schedule_lib.preset("webcam_clipart")
     days = [dt.date(2021, 1, 15), dt.date(2021, 7, 2)]
     starts = [dt.datetime(d.year, d.month, d.day, tzinfo=ZONE) for d in days]
     weather = {"cloud_cover": np.array([0.9, 0.1]), "weather": np.array([2, 0])}
     slots = inputs.slot_moments(schedule, starts, place=PLACE, weather=weather)
-    point = {"patch": tiny["patches"], "xy_normalized": tiny["xy"]}
+    point = {"patch": tiny["patches"], "xy_normalized": tiny["xy"], "category": tiny["category"]}
     vec = jax.jit(lambda p, s: cmodel.t_vector_at_slots(net.apply, p, point, tiny["capture"],
                                                          s))(params, slots)
     assert vec.shape == (3, schedule.num_timestamps)
@@ -162,7 +164,7 @@ def test_t_vector_at_slot_times_equals_any_time_queries(tiny):
             "cloud_cover": weather["cloud_cover"], "weather": weather["weather"]})
         target = {k: jnp.broadcast_to(v, (3, 2)) for k, v in query.items()}
         logits = apply({"params": params}, tiny["patches"], tiny["xy"], tiny["capture"],
-                       target)
+                       target, tiny["category"])
         np.testing.assert_allclose(vec[:, j], jax.nn.sigmoid(logits).mean(axis=1), atol=1e-6)
     # Between slots the model answers too, with no interpolation: 8:15 is its own query.
     between = inputs.moment_at([starts[0] + dt.timedelta(hours=8, minutes=15)], place=PLACE)
