@@ -204,7 +204,13 @@ def build_parser(name: str, doc: str, *, default_size: str = "full",
         parser.add_argument("--folds", type=int, default=0,
                             help="with --cross-validate: groups of viewpoints "
                                  "(default 0: one per viewpoint)")
-    parser.set_defaults(cross_validate=False, folds=0)
+        parser.add_argument("--ablation", default=None, metavar="V,V,...",
+                            help="with --cross-validate, beyond the paper: also train the "
+                            "conditional predictor in these variants, each 'time' or "
+                            "conditions joined by '+' (e.g. time,sun,weather,"
+                            "sun+weather+semantics); default: --config.model.conditions "
+                            "when set")
+    parser.set_defaults(cross_validate=False, folds=0, ablation=None)
     return parser
 
 
@@ -280,7 +286,23 @@ def main(argv, name: str, get_config, doc: str) -> int:
     from rp_jax import train
     from rp_jax.sources.layout import LayoutError
 
+    conditional = bool(args.ablation or config.model.conditions)
+    if conditional and not args.cross_validate:
+        print(f"python -m experiments.{name}: error: the conditional predictor "
+              "(--config.model.conditions, --ablation) is measured on held-out training "
+              "viewpoints only in this release: add --cross-validate", file=sys.stderr)
+        return 2
     try:
+        if conditional:  # beyond the paper: the paper's predictor and the conditional one
+            from experiments.conditional import config as conditional_config
+            from experiments.conditional import crossval as conditional_crossval
+
+            sec4a_config.validate(config)
+            # The workdir holds the paper's run: compared with the paper's fields.
+            sec4a_config.validate(conditional_config.paper_config(config), workdir)
+            return conditional_crossval.run(config, Path(workdir) / "conditional",
+                                            args.ablation, args.folds, quiet=args.quiet,
+                                            prog=f"python -m experiments.{name}")
         sec4a_config.validate(config, workdir)  # before any build: one line, exit 2
         if args.cross_validate:
             return _cross_validate(config, Path(workdir) / "crossval", args.folds)

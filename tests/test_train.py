@@ -177,9 +177,16 @@ def test_a_flat_config_json_is_read_in_groups():
     assert grouped == {"seed": 3, "train": {"num_epochs": 2},
                        "input": {"batch_size": 8, "augment": {"flip": True}},
                        "eval": {"batch_size": 16, "knn_k": 4},
-                       "model": {"encoder_features": 16, "time_fields": "day_of_year"},
+                       "model": {"encoder_features": 16, "time_fields": "day_of_year",
+                                 "conditions": "", "conditional_hidden": 128,
+                                 "time_harmonics": 2},
                        "unknown_field": 1}
-    assert default.upgrade(grouped) == grouped  # already grouped: unchanged
+    assert default.upgrade(grouped) == grouped  # current: unchanged
+    assert "conditions" not in flat["model"]  # the argument is not modified
+    # A grouped config written before the conditional fields reads with their defaults.
+    older = {"model": {"encoder_features": 16}, "train": {"num_epochs": 2}}
+    assert default.upgrade(older)["model"] == {"encoder_features": 16, "conditions": "",
+                                               "conditional_hidden": 128, "time_harmonics": 2}
 
 
 def test_a_workdir_written_before_the_grouping_resumes(tmp_path):
@@ -196,6 +203,8 @@ def test_a_workdir_written_before_the_grouping_resumes(tmp_path):
             flat[old] = v
     flat["time_fields"] = flat["model"].pop("time_fields")
     flat["time_encoding"] = flat["model"].pop("time_encoding")
+    for added in default.ADDED_FIELDS:  # they came later still
+        del flat["model"][added.split(".")[1]]
     (tmp_path / "config.json").write_text(json.dumps(flat))
     assert default.upgrade(flat) == grouped
     again = train.train_and_evaluate(small_config(num_epochs=1), tmp_path, src, progress=False)

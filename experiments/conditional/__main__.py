@@ -28,10 +28,6 @@ def _flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dataset", choices=DATASET_NAMES[:2], default="webcam_clipart",
                         help="which Sec. IV-A experiment's config and data (default "
                         "webcam_clipart)")
-    parser.add_argument("--ablation", default=None, metavar="V,V,...",
-                        help="conditional variants to train, each 'time' or conditions joined "
-                        "by '+' (e.g. time,sun,weather,sun+weather+semantics); default: the "
-                        "one of --config.model.conditions")
 
 
 def main(argv=None) -> int:
@@ -47,32 +43,22 @@ def main(argv=None) -> int:
         print(f"{prog}: error: this release measures on held-out training viewpoints only: "
               "give --cross-validate (and --folds N)", file=sys.stderr)
         return 2
-    from experiments.conditional import crossval
-
-    try:
-        variants = crossval.parse_variants(args.ablation or
-                                           (config.model.conditions.replace(",", "+") or "time"))
-    except ValueError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
     from rp_jax import platform, progress
 
     if args.quiet:
         progress.set_quiet()
     platform.configure_cpu()
+    from experiments.conditional import crossval
     from experiments.sec4a import config as sec4a_config
     from rp_jax import train
 
     try:
-        sec4a_config.validate(crossval.config_lib.paper_config(config))
-        result = crossval.cross_validate(config, workdir, variants, num_folds=args.folds,
-                                         progress=not args.quiet)
-    except (train.ConfigError, train.WorkdirMismatchError, ValueError) as e:
+        sec4a_config.validate(config)
+    except train.ConfigError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
-    print(crossval.markdown(result))
-    print(f"wrote {workdir}/conditional.json and conditional.md")
-    return 0
+    return crossval.run(config, workdir, args.ablation, args.folds, quiet=args.quiet,
+                        prog=prog)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,8 @@ import importlib
 
 import ml_collections
 
-# The fields this experiment adds; the paper's predictor is trained without them.
+# The conditional predictor's fields of config.model (defaults in rp_jax/configs/default.py);
+# the paper's predictor is trained with them at their defaults (``paper_config``).
 MODEL_FIELDS = ("conditions", "conditional_hidden", "time_harmonics")
 
 
@@ -24,10 +25,6 @@ def get_config(arg: str = "small") -> ml_collections.ConfigDict:
     dataset, _, size = arg.rpartition(":")
     dataset = dataset or "webcam_clipart"
     config = importlib.import_module(f"experiments.{dataset}.config").get_config(size)
-    m = config.model
-    m.conditions = ""  # comma list of sun, weather, semantics; "" = time only
-    m.conditional_hidden = 128  # width of the point code and the pair layers
-    m.time_harmonics = 2  # sin/cos multiples of the time-of-day angle
     # Nothing is chosen on held-out points: every model trains its fixed number of epochs.
     config.train.keep_best = False
     config.input.validation_fraction = 0.0
@@ -35,9 +32,12 @@ def get_config(arg: str = "small") -> ml_collections.ConfigDict:
 
 
 def paper_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-    """``config`` without this experiment's fields: what the paper's predictor trains with."""
+    """``config`` with the conditional fields at their defaults: what the paper's predictor
+    trains with (so its workdir is the same whatever the conditional variant)."""
+    from rp_jax.configs import default
+
     out = ml_collections.ConfigDict(config.to_dict())
+    defaults = default.get_config().model
     for field in MODEL_FIELDS:
-        if field in out.model:
-            del out.model[field]
+        out.model[field] = defaults[field]
     return out

@@ -31,7 +31,7 @@ from rp_jax import evaluation, files
 from rp_jax import schedule as schedule_lib
 from rp_jax.progress import bar as tqdm  # the one progress helper
 
-__all__ = ["cross_validate", "load_pairs", "markdown", "parse_variants", "variant_name"]
+__all__ = ["cross_validate", "load_pairs", "markdown", "parse_variants", "run", "variant_name"]
 
 
 def parse_variants(text: str) -> list[tuple[str, ...]]:
@@ -44,6 +44,30 @@ def parse_variants(text: str) -> list[tuple[str, ...]]:
     if not out:
         raise ValueError("no variant: give e.g. time,sun,weather,sun+weather+semantics")
     return out
+
+
+def run(config: ml_collections.ConfigDict, workdir: str | Path, ablation: str | None,
+        folds: int, *, quiet: bool = False, prog: str = "python -m experiments.conditional"
+        ) -> int:
+    """The command's work (``python -m experiments.conditional`` and the Sec. IV-A
+    experiments' ``--cross-validate`` with ``--config.model.conditions`` or ``--ablation``):
+    the variants of ``ablation`` (default: ``config.model.conditions``, else time only)
+    cross-validated against the paper's predictor; prints the table. Returns the exit status
+    (2 with one line on stderr for a bad variant, a config or workdir that cannot run)."""
+    import sys
+
+    from rp_jax import train
+
+    try:
+        variants = parse_variants(ablation or
+                                  (config.model.conditions.replace(",", "+") or "time"))
+        result = cross_validate(config, workdir, variants, num_folds=folds, progress=not quiet)
+    except (train.ConfigError, train.WorkdirMismatchError, ValueError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    print(markdown(result))
+    print(f"wrote {workdir}/conditional.json and conditional.md")
+    return 0
 
 
 def variant_name(conditions: tuple[str, ...]) -> str:

@@ -68,6 +68,18 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
     expect(isinstance(fraction, (int, float)) and not isinstance(fraction, bool)
            and 0 <= fraction < 1, "input.validation_fraction",
            "a number in [0, 1): the share of training viewpoints held out (0: none)")
+    from rp_jax.conditional import inputs as conditional_inputs
+
+    m = config.model
+    try:
+        conditional_inputs.parse_conditions(m.conditions)
+    except (ValueError, AttributeError) as e:
+        known = ", ".join(conditional_inputs.CONDITIONS)
+        expect(False, "model.conditions", f"a comma list of {known}, or '' ({e})")
+    for field in ("conditional_hidden", "time_harmonics"):
+        value = m[field]
+        expect(isinstance(value, int) and not isinstance(value, bool) and value >= 1,
+               f"model.{field}", "an integer >= 1")
     knn_k = config.eval.knn_k
     expect(isinstance(knn_k, int) and not isinstance(knn_k, bool) and knn_k >= 1,
            "eval.knn_k", "an integer >= 1")

@@ -50,6 +50,13 @@ def get_config() -> ml_collections.ConfigDict:
     m.dtype = "float32"  # patch-encoder compute dtype: float32 | bfloat16
     m.time_fields = "time_of_day"  # time_of_day | day_of_year | hour_of_year (d = 2, 2, 4)
     m.time_encoding = "cyclic"  # cyclic (sin/cos, continuous across the cycle) | raw
+    # Beyond the paper (rp_jax.conditional, issue 17): with conditions set, the Sec. IV-A
+    # experiments' --cross-validate also trains the conditional predictor, which scores one
+    # image pair from the capture's and the target's time and these conditions; the paper's
+    # predictor never reads these three fields.
+    m.conditions = ""  # comma list of sun, weather, semantics; "" = the paper's predictor only
+    m.conditional_hidden = 128  # conditional predictor: width of the point code and pair layers
+    m.time_harmonics = 2  # conditional predictor: sin/cos multiples of the time-of-day angle
 
     # Optimisation (optax), checkpoints (orbax) and devices.
     t = config.train = ml_collections.ConfigDict()
@@ -101,12 +108,34 @@ FLAT_TO_GROUPED = {
 }
 
 
+# Fields added since the first grouped release, with the value that means "as before": a
+# config written before them reads as if it had them at that value.
+ADDED_FIELDS = {
+    "model.conditions": "",
+    "model.conditional_hidden": 128,
+    "model.time_harmonics": 2,
+}
+
+
 def upgrade(config: dict) -> dict:
-    """A config dict (a ``config.json``) in the grouped layout: a flat one (written before the
-    grouping) has each of its ``FLAT_TO_GROUPED`` fields moved to its group; a grouped one is
-    returned as it is. Fields the table does not name stay where they are."""
-    if not any(key in config for key in FLAT_TO_GROUPED):
-        return config
+    """A config dict (a ``config.json``) in the current layout: a flat one (written before the
+    grouping) has each of its ``FLAT_TO_GROUPED`` fields moved to its group, and a field of
+    ``ADDED_FIELDS`` that a config's group lacks is given its "as before" value. Fields the
+    tables do not name stay where they are. The argument is not modified."""
+    out = _regroup(config) if any(key in config for key in FLAT_TO_GROUPED) else config
+    missing = [(k, v) for k, v in ADDED_FIELDS.items()
+               if isinstance(out.get(k.split(".")[0]), dict)
+               and k.split(".")[1] not in out[k.split(".")[0]]]
+    if not missing:
+        return out
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in out.items()}
+    for dotted, value in missing:
+        group, field = dotted.split(".")
+        out[group][field] = value
+    return out
+
+
+def _regroup(config: dict) -> dict:
     out: dict = {}
     for key, value in config.items():
         if key in FLAT_TO_GROUPED:

@@ -18,13 +18,14 @@ def test_variants_parse_and_name():
         crossval.parse_variants(" , ")
 
 
-def test_the_paper_predictor_trains_without_the_conditional_fields():
+def test_the_paper_predictor_trains_with_the_conditional_fields_at_their_defaults():
     config = config_lib.get_config("cmu_seasons:tiny")
     assert config.input.dataset == "cmu_seasons" and config.model.conditions == ""
+    config.model.conditions, config.model.conditional_hidden = "sun,weather", 64
     paper = config_lib.paper_config(config)
-    assert not set(config_lib.MODEL_FIELDS) & set(paper.model)
+    assert (paper.model.conditions, paper.model.conditional_hidden) == ("", 128)
     assert paper.model.encoder_channels == config.model.encoder_channels
-    assert "conditions" in config.model  # the original is left as it was
+    assert config.model.conditions == "sun,weather"  # the original is left as it was
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -57,3 +58,25 @@ def test_summary_and_table():
     text = crossval.markdown({"folds": folds, "summary": summary})
     assert "| b, c | 7 | 0.1000 | 0.1200 | 0.0900 | **0.0800** |" in text
     assert "conditional `time` vs the paper's RP: MAE -10.0 %" in text
+
+
+def test_the_sec4a_commands_take_the_conditional_fields(capsys, tmp_path, monkeypatch):
+    # Issue 17: the existing commands run the conditional predictor from a config field.
+    from experiments import cli as sec4a_cli
+    from experiments.webcam_clipart.config import get_config
+
+    def main(*flags):
+        return sec4a_cli.main(["--size", "tiny", "--workdir", str(tmp_path / "run"), *flags],
+                              "webcam_clipart", get_config, "")
+
+    assert main("--config.model.conditions=sun") == 2
+    assert "add --cross-validate" in capsys.readouterr().err
+    assert main("--cross-validate", "--config.model.conditions=sun,fog") == 2
+    assert "config.model.conditions='sun,fog': expected a comma list" in capsys.readouterr().err
+    calls = []
+    monkeypatch.setattr(crossval, "run", lambda config, workdir, ablation, folds, **kw:
+                        calls.append((config.model.conditions, workdir, ablation, folds)) or 0)
+    assert main("--cross-validate", "--folds", "2", "--config.model.conditions=weather,sun") == 0
+    assert main("--cross-validate", "--ablation", "time,sun") == 0
+    assert calls == [("weather,sun", tmp_path / "run" / "conditional", None, 2),
+                     ("", tmp_path / "run" / "conditional", "time,sun", 0)]
