@@ -1,0 +1,158 @@
+"""Map points scored at the query by the conditional predictor (issue 17, ``rp_conditional``).
+
+The paper's summarizer reads each point's T-vector at the query's time of day (Sec. V-A-2).
+The conditional predictor (``rp_jax.conditional``) answers a sharper question: the
+probability that one observation of a point is re-detected and matched in an image taken
+*at a given instant and conditions*. Here every observation of the map is encoded once (its
+patch, position, capture time and conditions: ``ConditionalScorer.encode``) and, for a
+query, scored at the query's time and conditions (the sun from the time and the camera's
+place; the weather where it is known, else unknown); a point's score is the mean over its
+observations (``mean_over_observations``), as the paper's point repeatability is the mean
+of its observations' (Sec. V-A-1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "ConditionalScorer",
+    "dataset_place",
+    "mean_over_observations",
+    "observation_codes",
+]
+
+
+def dataset_place(dataset: str) -> tuple[float, float] | None:
+    """(latitude, longitude) of ``data_specs/<dataset>.json``'s ``location``; None if none."""
+    from rp_jax.schedule import load_spec
+
+    location = load_spec(dataset).get("location") or {}
+    try:
+        return float(location["latitude"]), float(location["longitude"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def mean_over_observations(obs_scores: np.ndarray, obs_point: np.ndarray,
+                           num_points: int) -> np.ndarray:
+    """[P] mean of ``obs_scores`` [n_obs] over each point's observations (NaN: none)."""
+    obs_scores = np.asarray(obs_scores, np.float64)
+    total = np.bincount(obs_point, weights=obs_scores, minlength=num_points)
+    count = np.bincount(obs_point, minlength=num_points)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / count, np.nan)
+
+
+@functools.lru_cache(maxsize=4)
+def _compiled(net):
+    import jax
+
+    from rp_jax.conditional.model import ConditionalPredictor
+    from rp_jax.model import preprocess_patches
+
+    def encode(params, patches, xy, capture, category):
+        return net.apply({"params": params}, preprocess_patches(patches), xy, capture, category,
+                         method=ConditionalPredictor.encode)
+
+    def score(params, code, capture, target):
+        logits = net.apply({"params": params}, code, capture, target,
+                           method=ConditionalPredictor.score)
+        return jax.nn.sigmoid(logits)
+
+    return jax.jit(encode), jax.jit(score)
+
+
+@dataclasses.dataclass(frozen=True)
+class ConditionalScorer:
+    """A trained conditional predictor and where its camera is.
+
+    Attributes:
+      net: the ``rp_jax.conditional.model.ConditionalPredictor``.
+      params: its trained parameters.
+      place: (latitude, longitude) of the camera (the sun); None: unknown.
+      batch_size: observations per call.
+    """
+
+    net: object
+    params: dict
+    place: tuple[float, float] | None = None
+    batch_size: int = 512
+
+    def moments(self, times: Sequence[dt.datetime], weather: dict | None = None) -> dict:
+        """``inputs.moment_at`` of ``times`` at this camera's place."""
+        from rp_jax.conditional.inputs import moment_at
+
+        return moment_at(times, place=self.place, weather=weather)
+
+    def encode(self, patches: np.ndarray, xy_normalized: np.ndarray, capture: dict,
+               category: np.ndarray | None = None) -> np.ndarray:
+        """[n, hidden] code of each observation (uint8 patches [n, 64, 64, 3])."""
+        encode, _ = _compiled(self.net)
+        n = len(patches)
+        category = np.full(n, -1, np.int32) if category is None else np.asarray(category, np.int32)
+        out = []
+        for s in range(0, n, self.batch_size):
+            e = min(s + self.batch_size, n)
+            out.append(np.asarray(encode(self.params, np.asarray(patches[s:e]),
+                                         np.asarray(xy_normalized[s:e], np.float32),
+                                         {k: v[s:e] for k, v in capture.items()},
+                                         category[s:e])))
+        width = int(self.net.hidden)
+        return np.concatenate(out) if out else np.zeros((0, width), np.float32)
+
+    def probabilities(self, codes: np.ndarray, capture: dict, when: dt.datetime,
+                      weather: dict | None = None) -> np.ndarray:
+        """[n] probability that each observation is matched in an image taken at ``when``
+        (timezone-aware, on the camera's clock) under ``weather`` (None: unknown)."""
+        _, score = _compiled(self.net)
+        target = self.moments([when], weather)
+        n = len(codes)
+        out = np.zeros(n, np.float64)
+        for s in range(0, n, self.batch_size):
+            e = min(s + self.batch_size, n)
+            tgt = {k: np.broadcast_to(v[None, :], (e - s, 1)) for k, v in target.items()}
+            out[s:e] = np.asarray(score(self.params, codes[s:e],
+                                        {k: v[s:e] for k, v in capture.items()}, tgt))[:, 0]
+        return out
+
+    def point_scores(self, codes: np.ndarray, capture: dict, obs_point: np.ndarray,
+                     num_points: int, when: dt.datetime,
+                     weather: dict | None = None) -> np.ndarray:
+        """[P] each point's mean probability over its observations at ``when``."""
+        return mean_over_observations(self.probabilities(codes, capture, when, weather),
+                                      obs_point, num_points)
+
+
+def observation_codes(scorer: ConditionalScorer, rec, map_points, image_dir,
+                      obs_category: np.ndarray | None = None, *,
+                      progress: bool = False) -> tuple[np.ndarray, dict]:
+    """Every observation of the map encoded once: (codes [n_obs, hidden], capture moments).
+
+    The capture moment is the database image's time (``cmu_capture_time``) and, with the
+    scorer's place, its sun; the weather of a map image is unknown (as in the per-pair
+    outcomes the model is trained on, where the CMU world records none).
+    """
+    from rp_jax.mapsum.observations import cmu_capture_time, map_images
+
+    n_obs = map_points.num_observations
+    codes = np.full((n_obs, int(scorer.net.hidden)), np.nan, np.float32)
+    whens: list = [None] * n_obs
+    for image in map_images(rec, map_points, image_dir, cmu_capture_time,
+                            desc="map conditional codes", progress=progress):
+        rows = image.rows
+        w, h = image.size
+        xy = np.clip(image.xy / np.array([w, h], np.float32), 0.0, 1.0)
+        capture = scorer.moments([image.when] * len(rows))
+        cat = None if obs_category is None else obs_category[rows]
+        codes[rows] = scorer.encode(image.patches(), xy, capture, cat)
+        for r in rows:
+            whens[r] = image.when
+    if any(w is None for w in whens):
+        raise ValueError("some observations reference images missing from the model")
+    return codes, scorer.moments(whens)

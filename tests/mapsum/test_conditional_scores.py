@@ -1,0 +1,87 @@
+"""Map points scored at the query by the conditional predictor (``rp_conditional``)."""
+
+import datetime as dt
+import zoneinfo
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rp_jax.conditional.inputs import moment_at
+from rp_jax.conditional.model import ConditionalPredictor, init_params
+from rp_jax.mapsum.conditional_scores import (
+    ConditionalScorer,
+    dataset_place,
+    mean_over_observations,
+)
+from rp_jax.model import preprocess_patches
+
+TZ = zoneinfo.ZoneInfo("America/New_York")
+PITTSBURGH = (40.4406, -79.9959)
+
+
+def test_mean_over_observations():
+    scores = np.array([0.2, 0.4, 0.9, 0.6])
+    got = mean_over_observations(scores, np.array([0, 0, 2, 0]), 4)
+    np.testing.assert_allclose(got[[0, 2]], [0.4, 0.9])
+    assert np.isnan(got[1]) and np.isnan(got[3])  # points without observations
+
+
+def test_cmu_spec_has_the_camera_place():
+    lat, lon = dataset_place("cmu_seasons")
+    assert abs(lat - 40.44) < 0.01 and abs(lon + 79.99) < 0.01  # Pittsburgh
+
+
+@pytest.fixture(scope="module")
+def scorer_and_obs():
+    net = ConditionalPredictor(conditions=("sun",), encoder_channels=(4, 4, 8),
+                               encoder_features=8, hidden=8)
+    params = init_params(net, jax.random.key(1))
+    rng = np.random.default_rng(0)
+    n = 5
+    patches = rng.integers(0, 256, (n, 64, 64, 3), dtype=np.uint8)
+    xy = rng.uniform(size=(n, 2)).astype(np.float32)
+    scorer = ConditionalScorer(net, params, place=PITTSBURGH, batch_size=2)  # 3 batches
+    whens = [dt.datetime(2011, 4, 21, 10 + i, 5, tzinfo=TZ) for i in range(n)]
+    capture = scorer.moments(whens)
+    codes = scorer.encode(patches, xy, capture)
+    return scorer, patches, xy, capture, codes
+
+
+def _direct(scorer, patches, xy, capture, when):
+    """The model on each observation at ``when``, without the scorer's batching or codes."""
+    target = {k: jnp.asarray(v)[None, :].repeat(len(patches), 0)
+              for k, v in moment_at([when], place=PITTSBURGH).items()}
+    logits = scorer.net.apply({"params": scorer.params}, preprocess_patches(patches), xy,
+                              capture, target, np.full(len(patches), -1, np.int32))
+    return np.asarray(jax.nn.sigmoid(logits))[:, 0]
+
+
+def test_point_score_is_the_mean_of_its_observations_at_the_query(scorer_and_obs):
+    scorer, patches, xy, capture, codes = scorer_and_obs
+    obs_point = np.array([1, 0, 1, 1, 0])
+    when = dt.datetime(2010, 9, 1, 15, 30, tzinfo=TZ)
+    p = _direct(scorer, patches, xy, capture, when)
+    np.testing.assert_allclose(scorer.probabilities(codes, capture, when), p, rtol=1e-5)
+    got = scorer.point_scores(codes, capture, obs_point, 3, when)
+    np.testing.assert_allclose(got[:2], [p[[1, 4]].mean(), p[[0, 2, 3]].mean()], rtol=1e-5)
+    assert np.isnan(got[2])
+
+
+def test_point_score_depends_on_the_query_time_and_sun(scorer_and_obs):
+    scorer, patches, xy, capture, codes = scorer_and_obs
+    obs_point = np.array([0, 0, 1, 1, 1])
+    morning = dt.datetime(2010, 9, 1, 8, 0, tzinfo=TZ)
+    evening = dt.datetime(2010, 12, 21, 17, 0, tzinfo=TZ)
+    a = scorer.point_scores(codes, capture, obs_point, 2, morning)
+    b = scorer.point_scores(codes, capture, obs_point, 2, evening)
+    assert np.all(np.abs(a - b) > 1e-6)
+    np.testing.assert_allclose(b, [_direct(scorer, patches, xy, capture, evening)[:2].mean(),
+                                   _direct(scorer, patches, xy, capture, evening)[2:].mean()],
+                               rtol=1e-5)
+    # The same instant with the sun unknown (no place) is scored differently: the sun at
+    # the query's instant and place enters the score.
+    blind = ConditionalScorer(scorer.net, scorer.params, place=None)
+    c = blind.point_scores(codes, capture, obs_point, 2, morning)
+    assert np.all(np.abs(a - c) > 1e-6)
