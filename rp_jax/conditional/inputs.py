@@ -15,6 +15,10 @@ The time is encoded continuously: the angle of the time of day as sin/cos of its
 cyclic encoding, refined). A target is also given its difference to the capture (the
 paper's "time difference" reading of y^j, Sec. III-D). Unknown conditions encode as zeros
 with a known flag of 0, so a model trained with some unknown values takes them.
+
+A moment may also hold ``year`` (the calendar year, float; ``moment_at(..., with_year=True)``),
+read only by the long-term decay (``decay_basis``): the other encodings are periodic and
+cannot tell 2012 from 2017.
 """
 
 from __future__ import annotations
@@ -24,16 +28,20 @@ import numpy as np
 
 __all__ = [
     "CONDITIONS",
+    "DECAY_TIME_SCALES_YEARS",
     "MOMENT_KEYS",
     "SUN_KEYS",
     "WEATHER_KEYS",
+    "YEAR_KEY",
     "capture_features",
     "day_of_year",
+    "decay_basis",
     "moment_at",
     "num_weathers",
     "parse_conditions",
     "slot_moments",
     "target_features",
+    "years_between",
 ]
 
 CONDITIONS = ("sun", "weather", "semantics")
@@ -41,13 +49,21 @@ TIME_KEYS = ("hour", "minute", "day", "month")
 SUN_KEYS = ("sun_elevation_deg", "sun_azimuth_deg")
 WEATHER_KEYS = ("cloud_cover", "precipitation", "snow_cover", "weather")
 MOMENT_KEYS = TIME_KEYS + SUN_KEYS + WEATHER_KEYS
+YEAR_KEY = "year"  # optional; read only by the decay basis
+# The decay basis's time scales (years): 1 - exp(-years apart / tau) per tau. They bracket
+# the synthetic world's documented rates (rp_jax.sources.synthetic.slow_changes: a tenant's
+# median stay, a sign's service life and a repaint interval of several years, trees that
+# grow over a decade): 1 y a fast change, 3 y the shop fronts and signs, 10 y nearly linear
+# over a 5-year span (the trees). Over 0-5 years the three span constant-rate, saturating
+# and linear decays; their coefficients are the network's.
+DECAY_TIME_SCALES_YEARS = (1.0, 3.0, 10.0)
 _NUM_WEATHERS = 5  # clear, partly_cloudy, overcast, rain, snow (capture_conditions.WEATHERS)
 # Days before the first of each month (365-day year); NumPy: no JAX array at import time.
 _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype(np.float32)
 
 
 def moment_at(times, *, place: tuple[float, float] | None = None,
-              weather: dict | None = None) -> dict[str, np.ndarray]:
+              weather: dict | None = None, with_year: bool = False) -> dict[str, np.ndarray]:
     """The moment of timezone-aware datetimes (any instants): a query's target or capture.
 
     Args:
@@ -56,15 +72,18 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
         (``rp_jax.sun``); None leaves it unknown.
       weather: arrays or scalars of ``WEATHER_KEYS`` (a station record, a forecast); None
         leaves it unknown.
+      with_year: also ``YEAR_KEY`` (what a model with a decay basis reads).
 
     Returns:
-      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32).
+      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32) [and ``year``].
     """
     from rp_jax import sun as sunlib
 
     times = list(times)
     n = len(times)
     out = {k: np.array([getattr(t, k) for t in times], np.float32) for k in TIME_KEYS}
+    if with_year:
+        out[YEAR_KEY] = np.array([t.year for t in times], np.float32)
     out.update({k: np.full(n, np.nan, np.float32) for k in SUN_KEYS + WEATHER_KEYS[:-1]})
     out["weather"] = np.full(n, -1, np.int32)
     if place is not None and n:
@@ -80,14 +99,15 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
 
 
 def slot_moments(schedule, starts, *, place: tuple[float, float] | None = None,
-                 weather: dict | None = None) -> dict[str, np.ndarray]:
+                 weather: dict | None = None, with_year: bool = False) -> dict[str, np.ndarray]:
     """The moments of a schedule's T timestamps in M cycles: arrays [T, M].
 
     Args:
       schedule: a ``rp_jax.schedule.TimeSchedule``.
       starts: M timezone-aware datetimes, each the start of a cycle (midnight of a day for
         a day cycle, of 1 January for a year cycle) on the camera's clock.
-      place, weather: as ``moment_at``; ``weather`` values may be [M] (one per cycle).
+      place, weather, with_year: as ``moment_at``; ``weather`` values may be [M] (one per
+        cycle).
     """
     import datetime as dt
 
@@ -97,7 +117,7 @@ def slot_moments(schedule, starts, *, place: tuple[float, float] | None = None,
     T, M = schedule.num_timestamps, len(starts)
     per_cycle = {k: np.broadcast_to(np.asarray(v), (T, M)).reshape(-1)
                  for k, v in (weather or {}).items()}
-    flat = moment_at(times, place=place, weather=per_cycle or None)
+    flat = moment_at(times, place=place, weather=per_cycle or None, with_year=with_year)
     return {k: v.reshape(T, M) for k, v in flat.items()}
 
 
@@ -205,3 +225,36 @@ def target_features(capture, target, conditions: tuple[str, ...],
     if "weather" in conditions:
         parts += _weather(target)
     return jnp.stack(parts, axis=-1)
+
+
+def _in_years(moment) -> jnp.ndarray:
+    if YEAR_KEY not in moment:
+        raise ValueError(f"the decay basis reads the moments' {YEAR_KEY!r} (years apart); "
+                         "give it (moment_at(..., with_year=True), "
+                         "pairs.from_records(..., with_year=True))")
+    day, year = _fractions(moment)
+    return jnp.asarray(moment[YEAR_KEY], jnp.float32) + year + day / 365.0
+
+
+def years_between(capture, target) -> jnp.ndarray:
+    """|target - capture| in years (365-day years), ``B + (K,)``; both need ``year``."""
+    return jnp.abs(_in_years(target) - _in_years(capture)[..., None])
+
+
+def decay_basis(capture, target, time_scales=DECAY_TIME_SCALES_YEARS,
+                periodic: bool = False) -> jnp.ndarray:
+    """The long-term decay's basis functions of a capture and its targets: ``B + (K, n)``.
+
+    ``1 - exp(-years apart / tau)`` per time scale ``tau`` (0 for the same instant, so the
+    rest of the model keeps the short-term repeatability), and with ``periodic`` each also
+    times sin/cos of the target's time of day and of its day of the year (a decay that is
+    larger at some hours or seasons: a new shop front lit at night, a tree in leaf):
+    n = len(time_scales) * (5 if periodic else 1).
+    """
+    delta = years_between(capture, target)
+    decays = [1.0 - jnp.exp(-delta / float(tau)) for tau in time_scales]
+    if not periodic:
+        return jnp.stack(decays, axis=-1)
+    day, year = _fractions(target)
+    waves = [jnp.ones_like(day)] + _angles(day, 1) + _angles(year, 1)
+    return jnp.stack([d * w for d in decays for w in waves], axis=-1)

@@ -11,6 +11,12 @@ and matched as an inlier in an image taken then. ``__call__`` does both, for [B]
 and [B, K] targets. Everything is a pure function of ``params``: ``jax.jit``, ``jax.vmap``
 (over targets or points) and ``jax.grad`` compose with it.
 
+With ``decay_time_scales`` (opt-in; issue 17's long-term decay) the logit gains
+``sum_b c_b(code) * phi_b(capture, target)``: the basis ``inputs.decay_basis`` of the years
+between capture and target, whose coefficients ``c`` the network predicts from the point's
+code (a shop sign decays faster than a wall); the moments then need ``year``. Empty (the
+default) adds no parameter and leaves every output as it was.
+
 The paper's T-vector is the mean probability over a timestamp's targets: ``t_vector`` for
 targets that carry a slot (a viewpoint's images, the capture's own image counted as an
 inlier as in Sec. III-D), ``t_vector_at_slots`` for the slot times of given days.
@@ -50,6 +56,9 @@ class ConditionalPredictor(nn.Module):
       encoder_channels, encoder_features, dtype: the patch encoder (as the paper's RP).
       hidden: width of the point code and the pair layers.
       harmonics: sin/cos multiples of the time-of-day angle.
+      decay_time_scales: the long-term decay basis's time scales in years (e.g.
+        ``inputs.DECAY_TIME_SCALES_YEARS``); empty: no decay term.
+      decay_periodic: the basis also times the target's day and year waves.
     """
 
     conditions: tuple[str, ...] = ()
@@ -57,6 +66,8 @@ class ConditionalPredictor(nn.Module):
     encoder_features: int = 128
     hidden: int = 128
     harmonics: int = 2
+    decay_time_scales: tuple[float, ...] = ()
+    decay_periodic: bool = False
     dtype: Any = jnp.float32
 
     def setup(self):
@@ -73,6 +84,13 @@ class ConditionalPredictor(nn.Module):
         self.target_to_pair = nn.Dense(self.hidden)
         self.pair = nn.Dense(self.hidden // 2)
         self.logit = nn.Dense(1)
+        if self.decay_time_scales:
+            if min(self.decay_time_scales) <= 0:
+                raise ValueError(f"decay_time_scales {self.decay_time_scales}: years > 0")
+            per_scale = 5 if self.decay_periodic else 1
+            # Zero at init: the decay model starts as the model without it.
+            self.decay_coefficients = nn.Dense(len(self.decay_time_scales) * per_scale,
+                                               kernel_init=nn.initializers.zeros)
 
     def encode(self, patches, xy, capture, category=None) -> jnp.ndarray:
         """[B, hidden] code of each point (patches preprocessed, ``model.preprocess_patches``)."""
@@ -89,20 +107,28 @@ class ConditionalPredictor(nn.Module):
         """[B, K] logits for ``code`` [B, hidden] and targets of shape [B, K]."""
         t = inputs.target_features(capture, target, self.conditions, self.harmonics)
         h = nn.relu(self.point_to_pair(code)[:, None, :] + self.target_to_pair(t))
-        return self.logit(nn.relu(self.pair(h)))[..., 0]
+        logit = self.logit(nn.relu(self.pair(h)))[..., 0]
+        if self.decay_time_scales:
+            phi = inputs.decay_basis(capture, target, self.decay_time_scales,
+                                     self.decay_periodic)
+            logit = logit + jnp.einsum("bn,bkn->bk", self.decay_coefficients(code), phi)
+        return logit
 
     def __call__(self, patches, xy, capture, target, category=None) -> jnp.ndarray:
         return self.score(self.encode(patches, xy, capture, category), capture, target)
 
 
-def _zeros_moment(shape) -> dict:
-    return {k: jnp.zeros(shape) for k in inputs.MOMENT_KEYS}
+def _zeros_moment(shape, with_year: bool = False) -> dict:
+    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
+    return {k: jnp.zeros(shape) for k in keys}
 
 
 def init_params(net: ConditionalPredictor, rng) -> dict:
     """Initial ``params`` (shapes only under ``jax.eval_shape``)."""
-    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)), _zeros_moment((1,)),
-                    _zeros_moment((1, 1)), jnp.zeros((1,), jnp.int32))["params"]
+    year = bool(net.decay_time_scales)
+    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
+                    _zeros_moment((1,), year), _zeros_moment((1, 1), year),
+                    jnp.zeros((1,), jnp.int32))["params"]
 
 
 def pair_loss(logits, outcome, example_mask=None) -> jnp.ndarray:

@@ -31,7 +31,9 @@ class PairArrays:
         ``table`` int32 [N], ``own`` int32 [N], and ``capture_<key>`` [N] for each of
         ``inputs.MOMENT_KEYS``; optionally ``label`` / ``label_mask`` [N, T] (y^j).
       tables: ``<key>`` [V, K] for each of ``inputs.MOMENT_KEYS``, ``slot`` int32 [V, K],
-        ``valid`` bool [V, K] (a readable image; False for padding).
+        ``valid`` bool [V, K] (a readable image; False for padding); with ``year``
+        (``from_records(..., with_year=True)``) also ``year`` [V, K] and the points'
+        ``capture_year``, which ``batch`` then passes on.
       viewpoints: [V] the table of each viewpoint id (for reports).
     """
 
@@ -67,8 +69,9 @@ def batch(arrays: PairArrays, index: np.ndarray, size: int | None = None) -> dic
     num_targets = t["slot"].shape[1]
     out = {k: p[k][index] for k in ("patch", "xy_normalized", "category", "outcome")}
     out["mask"] = np.arange(size) < n
-    out["capture"] = {k: p[f"capture_{k}"][index] for k in inputs.MOMENT_KEYS}
-    out["target"] = {k: t[k][table] for k in inputs.MOMENT_KEYS}
+    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if inputs.YEAR_KEY in t else ())
+    out["capture"] = {k: p[f"capture_{k}"][index] for k in keys}
+    out["target"] = {k: t[k][table] for k in keys}
     out["target_slot"] = t["slot"][table]
     out["target_valid"] = t["valid"][table]
     out["own_target"] = p["own"][index][:, None] == np.arange(num_targets)[None, :]
@@ -78,9 +81,12 @@ def batch(arrays: PairArrays, index: np.ndarray, size: int | None = None) -> dic
     return out
 
 
-def _table_moment(side: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+def _table_moment(side: Mapping[str, np.ndarray], with_year: bool = False
+                  ) -> dict[str, np.ndarray]:
     time = np.asarray(side["image_time"])  # year, month, day, hour, minute, utc offset
     out = {"hour": time[:, 3], "minute": time[:, 4], "day": time[:, 2], "month": time[:, 1]}
+    if with_year:
+        out[inputs.YEAR_KEY] = time[:, 0]
     for key in inputs.SUN_KEYS + inputs.WEATHER_KEYS:  # the sidecar's image_<condition>
         out[key] = np.asarray(side[f"image_{key}"])
     return {k: np.asarray(v, np.int32 if k == "weather" else np.float32) for k, v in out.items()}
@@ -88,7 +94,7 @@ def _table_moment(side: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def from_records(columns: Mapping[str, np.ndarray],
                  sidecar: Mapping[str, Mapping[str, np.ndarray]],
-                 rows: np.ndarray) -> PairArrays:
+                 rows: np.ndarray, *, with_year: bool = False) -> PairArrays:
     """Pair arrays of a split's records and its sidecar.
 
     Args:
@@ -96,19 +102,21 @@ def from_records(columns: Mapping[str, np.ndarray],
         if present, ``label``/``label_mask``.
       sidecar: viewpoint -> its sidecar arrays (``outcomes.load``).
       rows: each record's row in its viewpoint's sidecar (``outcomes.join``).
+      with_year: also the images' calendar year (what a decay basis reads).
     """
     viewpoints = sorted(sidecar)
     width = max(len(sidecar[v]["image_id"]) for v in viewpoints)
     V = len(viewpoints)
+    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
     tables = {k: np.zeros((V, width), np.int32 if k == "weather" else np.float32)
-              for k in inputs.MOMENT_KEYS}
+              for k in keys}
     tables["weather"][:] = -1
     tables["slot"] = np.zeros((V, width), np.int32)
     tables["valid"] = np.zeros((V, width), bool)
     for i, vp in enumerate(viewpoints):
         side = sidecar[vp]
         n = len(side["image_id"])
-        for k, v in _table_moment(side).items():
+        for k, v in _table_moment(side, with_year).items():
             tables[k][i, :n] = v
         tables["slot"][i, :n] = side["image_slot"]
         tables["valid"][i, :n] = side["image_readable"]
@@ -130,7 +138,7 @@ def from_records(columns: Mapping[str, np.ndarray],
         "table": table,
         "own": own,
     }
-    for k in inputs.MOMENT_KEYS:
+    for k in keys:
         points[f"capture_{k}"] = tables[k][table, own]
     for k in ("label", "label_mask"):
         if k in columns:
