@@ -6,10 +6,16 @@ Usage::
     python -m experiments.decay [--size tiny|small|full] [--workdir DIR] [--seed N]
                                 [--workers N] [--max-keypoints N] [--resamples N]
                                 [--kinds tenant,repaint,...] [--quiet]
+    python -m experiments.decay --predict [--size small] [--num-epochs N]
+                                [--points-per-image N] [--workdir DIR] [--quiet]
 
 Writes ``<workdir>/decay.json``, ``decay.md``, ``decay.png`` and ``years.png`` (default
 workdir ``runs/decay_<size>``; ``decay-<kinds>.*`` with ``--kinds``) and prints the tables.
 Resumable: renders and labels already on disk are reused.
+
+``--predict``: the conditional predictor with and without its long-term decay basis,
+trained on the ``webcam_years`` training scenes but one and scored on that one per
+years-apart bin (``experiments.decay.predict``); writes ``predict.json``, ``.md``, ``.png``.
 """
 
 from __future__ import annotations
@@ -44,6 +50,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help="an ablation: only these slow changes, comma-separated, of "
                         "tenant, repaint, sign, tree_replacement, tree_growth (default: all); "
                         "writes decay-<kinds>.*")
+    parser.add_argument("--predict", action="store_true",
+                        help="instead: train the conditional predictor with and without its "
+                        "decay basis on the changing world's training scenes but one, and "
+                        "score it on that one per years apart (needs --size small or full)")
+    parser.add_argument("--num-epochs", type=float, default=4.0,
+                        help="with --predict: training epochs of each model")
+    parser.add_argument("--points-per-image", type=int, default=40,
+                        help="with --predict: interest points kept per image")
     command_line.add_quiet(parser)
     return parser
 
@@ -68,6 +82,21 @@ def main(argv: list[str] | None = None) -> int:
     from experiments.decay.measure import category_markdown, markdown, run
 
     workdir = args.workdir or Path("runs") / f"decay_{args.size}"
+    if args.predict:
+        from experiments.decay import predict
+
+        if args.num_epochs <= 0 or args.points_per_image < 1:
+            parser.error("--num-epochs > 0 and --points-per-image >= 1 expected")
+        try:
+            result = predict.run(workdir, size=args.size, seed=args.seed,
+                                 workers=args.workers, max_keypoints=args.max_keypoints,
+                                 points_per_image=args.points_per_image, epochs=args.num_epochs,
+                                 progress=not args.quiet)
+        except ValueError as e:
+            parser.error(str(e))
+        print(predict.markdown(result), end="")
+        print(f"written into {workdir}: predict.json, .md, .png")
+        return 0
     result = run(workdir, size=args.size, seed=args.seed, workers=args.workers,
                  max_keypoints=args.max_keypoints, resamples=args.resamples,
                  kinds=None if args.kinds is None else tuple(args.kinds.split(",")),

@@ -26,7 +26,7 @@ Run it as ``python -m experiments.decay --size small``; ``run`` is the same from
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -94,17 +94,19 @@ def viewpoint_outcomes(
     *,
     max_keypoints: int = 1000,
     progress: bool = False,
+    viewpoints: Iterable[str] | None = None,
 ) -> Iterator[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]]:
-    """``(records, outcomes)`` of every scene of a Webcam Clip Art layout, labelled as the
-    dataset's builder labels them, with the points' categories
-    (``label_viewpoint_outcomes``)."""
+    """``(records, outcomes)`` of every scene of a Webcam Clip Art layout (or of
+    ``viewpoints`` only), labelled as the dataset's builder labels them, with the points'
+    categories (``label_viewpoint_outcomes``)."""
     dataset = registry.get("webcam_clipart")
     captures = dataset.read(root)
     num_timestamps = preset("webcam_clipart").num_timestamps
     by_viewpoint: dict[str, list] = {}
     for c in captures:
         by_viewpoint.setdefault(str(c.viewpoint), []).append(c)
-    for viewpoint in sorted(by_viewpoint):
+    wanted = sorted(by_viewpoint) if viewpoints is None else sorted(set(viewpoints))
+    for viewpoint in wanted:
         yield label_viewpoint_outcomes(
             by_viewpoint[viewpoint],
             load_image=dataset.load_image,

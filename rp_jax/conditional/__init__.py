@@ -15,6 +15,8 @@ scored on the same labels. Conditions are each optional (``inputs.CONDITIONS``):
 ``weather``, ``semantics``.
 
 Modules: ``inputs`` (pure encodings of time and conditions), ``model`` (the Flax module,
-the loss, the T-vector), ``sun_task`` (a learnable task whose answer depends on the sun),
+the loss, the T-vector, an opt-in long-term decay basis over the years between capture
+and target), ``sun_task`` (a learnable task whose answer depends on the sun), ``decay_task``
+(one whose answer decays over the years at a rate set by the patch),
 ``pairs`` (records + sidecar -> arrays and batches) and ``train`` (the fit loop).
 """

@@ -50,12 +50,12 @@ SUN_KEYS = ("sun_elevation_deg", "sun_azimuth_deg")
 WEATHER_KEYS = ("cloud_cover", "precipitation", "snow_cover", "weather")
 MOMENT_KEYS = TIME_KEYS + SUN_KEYS + WEATHER_KEYS
 YEAR_KEY = "year"  # optional; read only by the decay basis
-# The decay basis's time scales (years): 1 - exp(-years apart / tau) per tau. They bracket
-# the synthetic world's documented rates (rp_jax.sources.synthetic.slow_changes: a tenant's
-# median stay, a sign's service life and a repaint interval of several years, trees that
-# grow over a decade): 1 y a fast change, 3 y the shop fronts and signs, 10 y nearly linear
-# over a 5-year span (the trees). Over 0-5 years the three span constant-rate, saturating
-# and linear decays; their coefficients are the network's.
+# The decay basis's time scales (years): 1 - exp(-years apart / tau) per tau. 10 y: the
+# synthetic world's documented per-element rates (rp_jax.sources.synthetic.slow_changes: a
+# tenant's median stay 10.7 y, a repaint every 10 y, a sign's life 15 y), nearly linear over
+# a 5-year span; 1 y and 3 y: the faster, saturating fall the world shows (experiments/decay:
+# most of it within 3 years, then flat). Their coefficients are the network's, so a point
+# may take any mix, or none.
 DECAY_TIME_SCALES_YEARS = (1.0, 3.0, 10.0)
 _NUM_WEATHERS = 5  # clear, partly_cloudy, overcast, rain, snow (capture_conditions.WEATHERS)
 # Days before the first of each month (365-day year); NumPy: no JAX array at import time.
