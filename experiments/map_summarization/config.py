@@ -56,6 +56,16 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.rp_method = "rp_cmu_kcover"
     m.candidates = ()
     m.cmu_rp_epochs = {"tiny": 2, "small": 8, "full": 8}[size]  # the CMU-trained RP
+    # ``rp_conditional`` / ``rp_conditional_kcover`` (issue 17; opt-in through
+    # ``candidates``): the conditional predictor (``rp_jax.conditional``) trained on the
+    # per-pair outcomes of the CMU training slices (the ``cmu`` RP's records), scoring each
+    # point at the query's time and conditions. Weather: the CMU world records none, so
+    # it is unknown in training and at the query; the sun comes from the time and
+    # ``data_specs/cmu_seasons.json``'s location.
+    m.conditional_conditions = "sun"  # comma list of rp_jax.conditional.inputs.CONDITIONS
+    m.conditional_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
+    m.conditional_hidden = 128  # width of its point code and pair layers
+    m.conditional_harmonics = 2  # sin/cos multiples of the time-of-day angle
     m.oracle_radius_px = 4.0  # oracle_date: a re-detection within this distance
     m.cell_size_m = 10.0  # ground-plane grid partition (Sec. V-A-2)
     m.up_axis = 2  # world axis pointing up (synthetic: z), for a diagnostic; -1 unknown
@@ -120,6 +130,12 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
         methods = experiment.methods_of(config)
     except ValueError as e:
         raise train.ConfigError(str(e)) from None
+    try:
+        from rp_jax.conditional.inputs import parse_conditions
+
+        parse_conditions(m.conditional_conditions)
+    except ValueError as e:
+        expect(False, "conditional_conditions", f"a comma list of sun, weather, semantics ({e})")
     expect(len(m.seeds) > 0 and all(isinstance(s, int) and s >= 0 for s in m.seeds), "seeds",
            "one or more non-negative integers, e.g. (0, 1, 2)")
     expect(m.synthetic_size in ("tiny", "small", "full"), "synthetic_size",
@@ -131,7 +147,8 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
            "one of ['stored', 'undistorted']")
     expect(m.up_axis in (-1, 0, 1, 2), "up_axis", "0, 1 or 2 (a world axis), or -1 (unknown)")
     for field in ("time_bucket_minutes", "max_keypoints", "vlad_words", "num_retrieved",
-                  "ransac_iterations", "cmu_rp_epochs"):
+                  "ransac_iterations", "cmu_rp_epochs", "conditional_epochs",
+                  "conditional_hidden", "conditional_harmonics"):
         number(field, 1, integer=True)
     number("min_inliers", 4, integer=True)  # a PnP pose needs four points
     for field in ("workers", "kcover_K", "random_seed"):
@@ -187,7 +204,10 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
 
     validate_training(mapsum_train.rp_config(config),
                       None if workdir is None else workdir / "rp")
-    if any(recipe and recipe[0] == "cmu"
-           for recipe in (experiment.recipe_of(k, config) for k in methods)):
+    predictors = {recipe[0] for recipe in (experiment.recipe_of(k, config) for k in methods)
+                  if recipe}
+    if "cmu" in predictors:
         validate_training(mapsum_train.cmu_config(config), None if workdir is None
                           else workdir / f"rp_cmu_without_slice{m.slice}")
+    elif "conditional" in predictors:  # its own workdir holds no RP run to compare with
+        validate_training(mapsum_train.cmu_config(config), None)

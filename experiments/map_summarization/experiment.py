@@ -61,7 +61,11 @@ from experiments.map_summarization.pooling import (
     success,
 )
 from experiments.map_summarization.queries import bucket, load_queries
-from experiments.map_summarization.train import train_cmu_predictor, train_predictor
+from experiments.map_summarization.train import (
+    train_cmu_predictor,
+    train_conditional_predictor,
+    train_predictor,
+)
 from experiments.sec4a import experiment
 from rp_jax import files, plots
 from rp_jax.localize import (
@@ -82,6 +86,7 @@ from rp_jax.mapsum import (
     read_model,
     write_summary_model,
 )
+from rp_jax.mapsum.conditional_scores import observation_codes
 from rp_jax.mapsum.observations import describe_observations, point_categories, query_scores
 from rp_jax.mapsum.oracles import agnostic_counts, redetection_counts, with_track_tiebreak
 from rp_jax.mapsum.statistics import (
@@ -116,6 +121,11 @@ RP_RECIPES = {
     "rp_kcover": ("robotcar", "kcover"),
     "rp_cmu": ("cmu", "top"),
     "rp_cmu_kcover": ("cmu", "kcover"),
+    # Beyond the paper (issue 17; opt-in via ``candidates``): the conditional predictor on
+    # the CMU training slices' per-pair outcomes, each point scored at the query's time and
+    # conditions (``rp_jax.mapsum.conditional_scores``).
+    "rp_conditional": ("conditional", "top"),
+    "rp_conditional_kcover": ("conditional", "kcover"),
 }
 METHOD_LABELS = {
     "rp_paper": "RP, paper's protocol",
@@ -123,6 +133,8 @@ METHOD_LABELS = {
     "rp_kcover": "RobotCar RP-weighted K-cover",
     "rp_cmu": "CMU RP, top per part",
     "rp_cmu_kcover": "CMU RP-weighted K-cover",
+    "rp_conditional": "conditional RP at the query, top per part",
+    "rp_conditional_kcover": "conditional RP-weighted K-cover",
     "kcover": "K-cover (minimal scene)",
     "random": "random",
     "most_observed": "most observed",
@@ -193,7 +205,8 @@ def evaluate_world(
     """Every method on one world (seed): per-query outcomes and per-point evidence.
 
     ``predictors`` maps a recipe's predictor name (``"robotcar"``, ``"cmu"``) to a loaded
-    ``Predictor``; ``"robotcar"`` is required.
+    ``Predictor``; ``"robotcar"`` is required; ``"conditional"`` is a
+    ``rp_jax.mapsum.conditional_scores.ConditionalScorer``.
 
     Returns (and writes to ``out_dir/seed.json``) a dict with ``queries`` (names, dates,
     posed flags), ``outcomes`` ({method: {ratio: [[bool x 3] per query]}}), ``auc``
@@ -245,7 +258,9 @@ def evaluate_world(
         associate_px=m.associate_px,
         describe_on=m.describe_on,
         progress=progress,
-        more_predictors={k: v for k, v in predictors.items() if k != "robotcar"},
+        more_predictors={
+            k: v for k, v in predictors.items() if k not in ("robotcar", "conditional")
+        },
     )
     point_rep = {"robotcar": point_repeatability(mp, obs.repeatability)}
     for k, r in obs.more_repeatability.items():
@@ -326,6 +341,21 @@ def evaluate_world(
         for k in point_rep
         for b in buckets
     }
+    if "conditional" in predictors:
+        # Each observation encoded once; each bucket's query time (and the sun then) scores
+        # it; a point's score is the mean over its observations. The query's weather is
+        # unknown: the CMU world records none (nor do the outcomes the model learnt from).
+        tic = time.perf_counter()
+        scorer = predictors["conditional"]
+        codes, capture = observation_codes(
+            scorer, rec, mp, root / f"slice{m.slice}" / "database", obs.category,
+            progress=progress,
+        )
+        for b in buckets:
+            scores_at[("conditional", b)] = scorer.point_scores(
+                codes, capture, mp.obs_point, mp.num_points, b
+            )
+        timings["conditional_scores_s"] = time.perf_counter() - tic
     track = mp.track_length.astype(np.float64)
     # Scores that do not depend on the query's hour: once per world, or once per date.
     random_score = np.random.default_rng(m.random_seed).permutation(mp.num_points).astype(float)
@@ -517,6 +547,15 @@ def run(
             config, cmu_dir, exclude_slices=(int(m.slice),), progress=progress
         )
         timings["cmu_rp_dataset_and_training_s"] = time.perf_counter() - tic
+    if any(recipe_of(k, config)[0] == "conditional" for k in methods if recipe_of(k, config)):
+        tic = time.perf_counter()
+        predictors["conditional"], training["conditional"] = train_conditional_predictor(
+            config,
+            workdir / f"rp_conditional_without_slice{m.slice}",
+            exclude_slices=(int(m.slice),),
+            progress=progress,
+        )
+        timings["conditional_dataset_and_training_s"] = time.perf_counter() - tic
     fingerprint = _fingerprint(config, {k: v.params for k, v in sorted(predictors.items())})
     seeds = [0] if config.input.data_config == "real" or m.root else [int(s) for s in m.seeds]
     per_seed = []
@@ -565,6 +604,7 @@ def run(
         }
         if "cmu" in training
         else None,
+        "conditional_training": training.get("conditional"),
         "slice": int(m.slice),
         "dataset": {
             "rp": f"robotcar/{config.input.data_config}",

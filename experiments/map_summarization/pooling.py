@@ -88,6 +88,21 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
                     "only_agnostic": only_agnostic,
                     "p": mcnemar_exact(only_date, only_agnostic),
                 }
+    # Each candidate recipe paired with ``rp`` as well (issue 17: rp_conditional against rp).
+    paired_rp: dict = {}
+    if "rp" in methods:
+        for method in (k for k in methods if k.startswith("rp_") and k != "rp_paper"):
+            paired_rp[method] = {}
+            for ratio in ratios:
+                a, b = stacked(method, ratio), stacked("rp", ratio)
+                paired_rp[method][ratio] = {}
+                for j, th in enumerate(THRESHOLD_KEYS):
+                    only_method, only_rp = paired_counts(a[:, j], b[:, j])
+                    paired_rp[method][ratio][th] = {
+                        "only_method": only_method,
+                        "only_rp": only_rp,
+                        "p": mcnemar_exact(only_method, only_rp),
+                    }
     full = np.concatenate(
         [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]
     )[posed]
@@ -133,6 +148,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         "interval": interval,
         "paired": paired,
         "oracle_date_vs_agnostic": oracle_gap,
+        "paired_vs_rp": paired_rp,
         "full_map_accuracy": full_acc,
         "inlier_auc": auc,
         "inlier_auc_per_date": auc_per_date,

@@ -10,6 +10,7 @@ one resumes). Training lives here, beside the driver, and never in ``rp_jax.maps
 from __future__ import annotations
 
 import copy
+import dataclasses
 from pathlib import Path
 
 import ml_collections
@@ -19,7 +20,13 @@ from experiments.sec4a import experiment
 from rp_jax import predict, train
 from rp_jax import schedule as schedule_lib
 
-__all__ = ["cmu_config", "rp_config", "train_cmu_predictor", "train_predictor"]
+__all__ = [
+    "cmu_config",
+    "rp_config",
+    "train_cmu_predictor",
+    "train_conditional_predictor",
+    "train_predictor",
+]
 
 
 def rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -119,3 +126,105 @@ def train_cmu_predictor(
     counts["train_slices"] = sorted(set(slice_of[keep].tolist()))
     counts["excluded_slices"] = [f"slice{s}" for s in exclude_slices]
     return predictor, counts
+
+
+def _conditional_settings(cfg, epochs: int):
+    from rp_jax.conditional.train import FitSettings
+
+    a = cfg.input.augment
+    return FitSettings(
+        num_epochs=float(epochs), batch_size=int(cfg.input.batch_size),
+        learning_rate=float(cfg.train.learning_rate),
+        warmup_epochs=float(cfg.train.warmup_epochs),
+        weight_decay=float(cfg.train.weight_decay), grad_clip=float(cfg.train.grad_clip),
+        seed=int(cfg.seed), brightness=float(a.brightness), contrast=float(a.contrast),
+        flip=bool(a.flip))
+
+
+def conditional_network(config: ml_collections.ConfigDict):
+    """The ``rp_conditional`` model of ``config.map.conditional_*`` (the CMU RP's encoder)."""
+    from rp_jax.conditional.inputs import parse_conditions
+    from rp_jax.conditional.model import ConditionalPredictor
+    from rp_jax.model import DTYPES
+
+    m, mo = config.map, config.model
+    return ConditionalPredictor(conditions=parse_conditions(m.conditional_conditions),
+                                encoder_channels=tuple(mo.encoder_channels),
+                                encoder_features=int(mo.encoder_features),
+                                hidden=int(m.conditional_hidden),
+                                harmonics=int(m.conditional_harmonics), dtype=DTYPES[mo.dtype])
+
+
+def train_conditional_predictor(
+    config: ml_collections.ConfigDict,
+    workdir: Path,
+    *,
+    exclude_slices: tuple[int, ...] = (),
+    progress: bool = True,
+):
+    """The conditional predictor (issue 17) on the per-pair outcomes of the CMU training
+    slices less ``exclude_slices``: the records the ``cmu`` RP trains on (``cmu_config``),
+    every one (a fixed number of epochs, ``config.map.conditional_epochs``; nothing is
+    chosen on held-out points). Returns (``ConditionalScorer``, counts).
+
+    A finished fit in ``workdir`` (``params.msgpack`` beside a ``fit.json`` of the same
+    settings and training points) is reused; otherwise the model is trained again.
+    """
+    import json
+
+    from flax import serialization
+
+    from experiments.conditional.crossval import load_pairs
+    from rp_jax import files
+    from rp_jax.conditional import pairs
+    from rp_jax.conditional import train as ctrain
+    from rp_jax.conditional.model import init_params
+    from rp_jax.mapsum.conditional_scores import ConditionalScorer, dataset_place
+
+    cfg = cmu_config(config)
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    columns, arrays, _ = load_pairs(cfg, workdir)
+    slice_of = np.array([(v.decode() if isinstance(v, bytes) else str(v)).split("/")[0]
+                         for v in columns["viewpoint"]])
+    keep = ~np.isin(slice_of, [f"slice{s}" for s in exclude_slices])
+    if not keep.any():
+        raise ValueError(f"no CMU training records outside slices {list(exclude_slices)}")
+    arrays = pairs.subset(arrays, keep)
+    net = conditional_network(config)
+    settings = _conditional_settings(cfg, int(config.map.conditional_epochs))
+    known = arrays.points["outcome"] >= 0
+    counts = {
+        "train_points": int(keep.sum()),
+        "train_pairs": int(known.sum()),
+        "train_pairs_matched": int((arrays.points["outcome"] == 1).sum()),
+        "train_viewpoints": len(set(np.asarray(columns["viewpoint"])[keep].tolist())),
+        "train_slices": sorted(set(slice_of[keep].tolist())),
+        "excluded_slices": [f"slice{s}" for s in exclude_slices],
+        "conditions": list(net.conditions),
+        "sun_known_share": float(np.isfinite(arrays.tables["sun_elevation_deg"])[
+            arrays.tables["valid"]].mean()),
+        "weather_known_share": float((arrays.tables["weather"] >= 0)[
+            arrays.tables["valid"]].mean()),
+    }
+    asked = {"settings": dataclasses.asdict(settings), "network": repr(net), **counts}
+    asked = json.loads(json.dumps(asked, default=str))
+    fit_json, params_file = workdir / "fit.json", workdir / "params.msgpack"
+    params = None
+    if fit_json.is_file() and params_file.is_file():
+        prev = json.loads(fit_json.read_text())
+        if prev.get("asked") == asked:
+            import jax
+
+            template = jax.eval_shape(lambda: init_params(net, jax.random.key(0)))
+            params = serialization.from_bytes(
+                jax.tree_util.tree_map(lambda a: np.zeros(a.shape, a.dtype), template),
+                params_file.read_bytes())
+            history = prev["history"]
+    if params is None:
+        params, history = ctrain.fit(net, arrays, settings, progress=progress)
+        files.write_bytes(params_file, serialization.to_bytes(params))
+        files.write_json(fit_json, {"asked": asked, "history": history})
+    scorer = ConditionalScorer(net, params, place=dataset_place("cmu_seasons"),
+                               batch_size=int(config.eval.batch_size))
+    return scorer, {**counts, "history": history}

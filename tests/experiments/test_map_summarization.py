@@ -250,6 +250,19 @@ def test_methods_and_recipes_of_a_config():
         mexp.methods_of(config)
 
 
+def test_pool_pairs_a_candidate_recipe_with_rp():
+    ok, no = [True] * 3, [False] * 3
+    a = _seed_result([True] * 4, [ok, ok, no, no], [no] * 4, ["2010-09-01"] * 4)
+    a["outcomes"]["rp_conditional"] = {"0.5": [no, ok, ok, ok]}
+    a["auc"]["rp_conditional"] = {"all": 0.5}
+    a["coverage"]["rp_conditional"] = {"0.5": [3, 5.0]}
+    pooled = mexp.pool([a], ["0.5"], resamples=50)
+    # rp_conditional alone localizes queries 3 and 4, rp alone query 1.
+    assert pooled["paired_vs_rp"]["rp_conditional"]["0.5"]["5m_10deg"] == {
+        "only_method": 2, "only_rp": 1, "p": 1.0}
+    assert set(pooled["paired_vs_rp"]) == {"rp_conditional"}  # not the baselines, not rp
+
+
 def test_pool_refuses_seeds_of_different_methods():
     ok = [True] * 3
     a = _seed_result([True], [ok], [ok], ["2010-09-01"])
@@ -304,3 +317,37 @@ def test_a_bad_recipe_exits_2_before_any_work(tmp_path, capsys):
     assert main(argv) == 2
     assert "unknown RP recipe 'bogus'" in capsys.readouterr().err
     assert not (tmp_path / "w").exists()
+
+
+@pytest.mark.slow
+def test_rp_conditional_recipe_end_to_end_on_the_tiny_world(tiny_run, tmp_path):
+    """``rp_conditional`` (issue 17) on the fixture's world: every query is localized on a
+    summary of the same size as K-cover's, per bucket; its scores are the scorer's means."""
+    import jax
+
+    from experiments.map_summarization.train import conditional_network
+    from rp_jax import predict
+    from rp_jax.conditional.model import init_params
+    from rp_jax.mapsum.conditional_scores import ConditionalScorer
+
+    workdir, metrics, argv = tiny_run
+    # ``rp`` on the RobotCar RP here, so that no CMU RP is needed.
+    config, _ = parse([*argv, "--config.map.ratios=(0.5,)", "--config.map.rp_method=rp_kcover",
+                       "--config.map.candidates=('rp_conditional','rp_conditional_kcover')"])
+    net = conditional_network(config)
+    assert net.conditions == ("sun",)
+    # Untrained weights: the recipe's path (scores at each bucket, the rules, localization)
+    # is what is tested here; the fit is tested in tests/conditional.
+    scorer = ConditionalScorer(net, init_params(net, jax.random.key(0)), place=(40.44, -79.99))
+    predictors = {"robotcar": predict.load(workdir / "rp"), "conditional": scorer}
+    out = mexp.evaluate_world(config, 0, predictors, tmp_path / "seed0", fingerprint="t",
+                              progress=False)
+    kept = out["kept_points"]
+    for method in ("rp_conditional", "rp_conditional_kcover"):
+        assert len(out["outcomes"][method]["0.5"]) == metrics["queries"]
+        # One summary per query-time bucket (the score depends on the query's time), each
+        # as large as K-cover's.
+        assert len(kept[method]["0.5"]) > 1
+        assert kept[method]["0.5"] == kept["kcover"]["0.5"] * len(kept[method]["0.5"])
+    assert out["auc"]["rp_conditional"]["all"] is not None
+    assert "conditional_scores_s" in out["timings"]
