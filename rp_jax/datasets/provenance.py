@@ -73,6 +73,11 @@ def layout_fingerprint(root: str | os.PathLike) -> dict:
     return {"root": str(root), "files": n_files, "bytes": total, "digest": h.hexdigest()}
 
 
+# Fields of data_specs/<name>.json that the labelling never reads (the camera's place, for the
+# sun of the conditional predictor's sidecar): adding one leaves every build valid.
+SPEC_FIELDS_NOT_LABELLING = ("location", "location_note")
+
+
 def labelling_fingerprint(builder) -> dict:
     """What turns the layout into records: builder version and config, ground truth, spec."""
     from rp_jax.datasets import registry
@@ -90,7 +95,8 @@ def labelling_fingerprint(builder) -> dict:
         },
         "ground_truth": dataclasses.asdict(
             registry.get(builder.DATASET).ground_truth(cfg.max_keypoints)),
-        "data_spec": load_spec(builder.DATASET),
+        "data_spec": {k: v for k, v in load_spec(builder.DATASET).items()
+                      if k not in SPEC_FIELDS_NOT_LABELLING},
     }
     text = json.dumps(payload, sort_keys=True, default=str)
     return {"digest": hashlib.sha256(text.encode()).hexdigest(), **payload}

@@ -68,3 +68,21 @@ def test_labelling_settings_are_part_of_the_fingerprint(tmp_path, monkeypatch):
                         lambda b: {**fp, "digest": "other", "version": "0.0.1"})
     with pytest.raises(provenance.BuiltFromAnotherLayoutError, match="version differ"):
         provenance.prepare(builder, a)
+
+
+def test_the_camera_place_in_the_data_spec_is_not_part_of_the_labelling(tmp_path, monkeypatch):
+    # data_specs' location feeds only the conditional predictor's sun: adding it to a spec
+    # must not refuse every dataset built before; a field the labelling reads must.
+    from rp_jax import schedule
+    from rp_jax.datasets import loading
+
+    builder = loading.get_builder("cmu_seasons", config="synthetic_tiny",
+                                  data_dir=tmp_path / "t", workers=1)
+    spec = schedule.load_spec("cmu_seasons")
+    assert "location" in spec
+    before = provenance.labelling_fingerprint(builder)["digest"]
+    without = {k: v for k, v in spec.items() if k not in ("location", "location_note")}
+    monkeypatch.setattr(schedule, "load_spec", lambda name: without)
+    assert provenance.labelling_fingerprint(builder)["digest"] == before
+    monkeypatch.setattr(schedule, "load_spec", lambda name: {**spec, "timezone": "UTC"})
+    assert provenance.labelling_fingerprint(builder)["digest"] != before
