@@ -8,10 +8,12 @@ cores and sharding the batch over them (``rp_jax.train`` is data parallel), plus
 YNNPACK fusion of dots, elementwise ops and reductions, measured faster for this model on
 2 cores (see the README's Performance section for the figures). Nothing changes on a GPU.
 
-``tune_malloc`` (also applied by ``configure_cpu``) keeps the memory that XLA frees in the
-process: by default glibc serves every block above 32 MB with a fresh ``mmap`` and returns
-it at ``free``, so each train step's large temporaries were page-faulted in again (about
-18,000 faults, 74 MB, per step of batch 128 per device, measured with ``perf stat``).
+``tune_malloc`` (opt-in: ``configure_cpu(malloc=True)``) keeps the memory that XLA frees in
+the process: by default glibc serves every block above 32 MB with a fresh ``mmap`` and
+returns it at ``free``, so each train step's large temporaries were page-faulted in again
+(about 18,000 faults, 74 MB, per step of batch 128 per device, measured with ``perf stat``).
+It sped the train step up by 19-22 % in two interleaved benchmark runs, but prediction
+measured -1 % and -25 % (the second run under load 8-18), so it is not a default.
 
 ``make_mesh`` is the 1-D ``data`` mesh that training and prediction shard batches over.
 """
@@ -55,7 +57,7 @@ def tune_malloc() -> bool:
 
 
 def configure_cpu(
-    num_devices: int | None = None, ynn: bool = True, malloc: bool = True
+    num_devices: int | None = None, ynn: bool = True, malloc: bool = False
 ) -> None:
     """Split the CPU into ``num_devices`` XLA devices (default: the core count), set XLA flags
     and (``malloc``) ``tune_malloc``.

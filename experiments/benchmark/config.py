@@ -138,6 +138,22 @@ VARIANTS: dict[str, Variant] = {
             "transpose, glibc's default malloc (the previous default)",
         ),
         Variant(
+            "jax_2dev_ynn_image",
+            "jax",
+            2,
+            True,
+            description="JAX, 2 devices + YNN (rp_jax.platform.configure_cpu defaults), conv1 as "
+            "a 12x12 stride-4 convolution of the image (model default)",
+        ),
+        Variant(
+            "jax_2dev_ynn_bf16",
+            "jax",
+            2,
+            True,
+            "bfloat16",
+            description="JAX, configure_cpu defaults, bfloat16 patch encoder",
+        ),
+        Variant(
             "jax_2dev_ynn_malloc_s2d",
             "jax",
             2,
@@ -153,8 +169,8 @@ VARIANTS: dict[str, Variant] = {
             2,
             True,
             malloc=True,
-            description="JAX, 2 devices + YNN + tune_malloc (rp_jax.platform.configure_cpu "
-            "default), conv1 as a 12x12 stride-4 convolution of the image (model default)",
+            description="JAX, 2 devices + YNN + tune_malloc (rp_jax.platform.configure_cpu("
+            "malloc=True)), conv1 as a 12x12 stride-4 convolution of the image (model default)",
         ),
         Variant(
             "jax_2dev_ynn_malloc_bf16",
@@ -163,7 +179,7 @@ VARIANTS: dict[str, Variant] = {
             True,
             "bfloat16",
             malloc=True,
-            description="JAX, configure_cpu defaults, bfloat16 patch encoder",
+            description="JAX, configure_cpu(malloc=True), bfloat16 patch encoder",
         ),
         Variant(
             "jax_predictor_api",
@@ -171,7 +187,6 @@ VARIANTS: dict[str, Variant] = {
             2,
             True,
             predictor_api=True,
-            malloc=True,
             description="rp_jax.predict.Predictor as shipped, after configure_cpu()",
         ),
         Variant("torch_eager", "torch", description="PyTorch 2 threads, eager"),
@@ -193,15 +208,15 @@ VARIANTS: dict[str, Variant] = {
     )
 }
 # Which variant stands for "ours" and for "peer" in the top-level ratio: what a user gets
-# by default from each (configure_cpu() on this project, eager mode in PyTorch).
-OURS_DEFAULT = "jax_2dev_ynn_malloc"
+# by default from each (configure_cpu() and the model's defaults; eager mode in PyTorch).
+OURS_DEFAULT = "jax_2dev_ynn_image"
 PEER_DEFAULT = "torch_eager"
 _MODEL_VARIANTS = [
     "jax_1dev",
     "jax_2dev_ynn",
-    "jax_2dev_ynn_malloc_s2d",
+    "jax_2dev_ynn_image",
     "jax_2dev_ynn_malloc",
-    "jax_2dev_ynn_malloc_bf16",
+    "jax_2dev_ynn_bf16",
 ]
 _PEERS = ["torch_eager", "torch_eager_malloc", "torch_bf16"]
 STAGE_VARIANTS = {

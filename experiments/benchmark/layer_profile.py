@@ -10,7 +10,7 @@ batch (the train batch of the size: 256 at full size; median over rounds), GFLOP
 speed ratio JAX / PyTorch measured in the same rounds.
 
 Each framework runs in its own worker process (``worker.py``), as the train stage runs them:
-JAX with ``configure_cpu``'s settings (the ``jax_2dev_ynn_malloc`` variant; a layer here is
+JAX with ``configure_cpu``'s defaults (the ``jax_2dev_ynn_image`` variant; a layer here is
 jitted without sharding, so it runs on one device with the 2-thread pool), PyTorch eager with
 2 threads (``torch_eager``). Two frameworks in one process would fight over the cores (one's
 idle threads spinning while the other works). The whole batch goes through one JAX device

@@ -393,7 +393,7 @@ def test_layer_profile_benches_and_table():
     from experiments.benchmark import layer_profile
     from experiments.benchmark.config import VARIANTS
 
-    for name in ("jax_2dev_ynn_malloc", "torch_eager"):
+    for name in ("jax_2dev_ynn_image", "torch_eager"):
         bench = layer_profile.LayerBench(VARIANTS[name], SIZES["tiny"], inner=1,
                                          layers=["conv2"])
         assert bench.setup()["keys"] == ["conv2|fwd", "conv2|fwd+bwd"]
