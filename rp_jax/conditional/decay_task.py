@@ -22,7 +22,7 @@ import datetime as dt
 import numpy as np
 
 from rp_jax.conditional import inputs
-from rp_jax.conditional.pairs import PairArrays
+from rp_jax.conditional.pairs import PairArrays, per_point_tables
 
 __all__ = ["HALF_LIFE_YEARS", "KINDS", "make_decay_task"]
 
@@ -83,18 +83,8 @@ def make_decay_task(num_points: int, num_targets: int = 8, *, seed: int = 0
     outcome = (rng.random((n, k)) < probability).astype(np.int8)
 
     capture = _moment(cap_year, day, rng.uniform(7.0, 17.0, n))
-    points = {
-        "patch": _patches(kind, rng),
-        "xy_normalized": rng.uniform(0, 1, (n, 2)).astype(np.float32),
-        "category": np.full(n, -1, np.int32),
-        "outcome": outcome,
-        "table": np.arange(n, dtype=np.int32),
-        "own": np.full(n, -1, np.int32),
-        **{f"capture_{key}": value for key, value in capture.items()},
-    }
-    tables = _moment(tgt_year, np.broadcast_to(day[:, None], (n, k)),
-                     rng.uniform(7.0, 17.0, (n, k)))
-    tables["slot"] = np.zeros((n, k), np.int32)
-    tables["valid"] = np.ones((n, k), bool)
-    return (PairArrays(points, tables, [f"point{i}" for i in range(n)]), probability,
-            years_apart, kind)
+    patch = _patches(kind, rng)
+    xy = rng.uniform(0, 1, (n, 2)).astype(np.float32)
+    targets = _moment(tgt_year, np.broadcast_to(day[:, None], (n, k)),
+                      rng.uniform(7.0, 17.0, (n, k)))
+    return per_point_tables(patch, xy, outcome, capture, targets), probability, years_apart, kind

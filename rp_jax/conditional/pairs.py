@@ -18,7 +18,7 @@ import numpy as np
 
 from rp_jax.conditional import inputs
 
-__all__ = ["PairArrays", "batch", "from_records", "subset"]
+__all__ = ["PairArrays", "batch", "from_records", "per_point_tables", "subset"]
 
 
 @dataclasses.dataclass
@@ -43,6 +43,28 @@ class PairArrays:
 
     def __len__(self) -> int:
         return len(self.points["table"])
+
+
+def per_point_tables(patch: np.ndarray, xy_normalized: np.ndarray, outcome: np.ndarray,
+                     capture: dict[str, np.ndarray], targets: dict[str, np.ndarray]
+                     ) -> PairArrays:
+    """Pair arrays in which every point is its own table (the learnable tasks): ``outcome``
+    [N, K] in ``targets`` (moment arrays [N, K]) of points captured at ``capture`` (moment
+    arrays [N]); no semantic class, no own image, every target readable."""
+    n, k = outcome.shape
+    points = {
+        "patch": patch,
+        "xy_normalized": xy_normalized,
+        "category": np.full(n, -1, np.int32),
+        "outcome": outcome,
+        "table": np.arange(n, dtype=np.int32),
+        "own": np.full(n, -1, np.int32),
+        **{f"capture_{key}": value for key, value in capture.items()},
+    }
+    tables = dict(targets)
+    tables["slot"] = np.zeros((n, k), np.int32)
+    tables["valid"] = np.ones((n, k), bool)
+    return PairArrays(points, tables, [f"point{i}" for i in range(n)])
 
 
 def subset(arrays: PairArrays, rows: np.ndarray) -> PairArrays:

@@ -24,7 +24,7 @@ import numpy as np
 
 from rp_jax import sun as sunlib
 from rp_jax.conditional import inputs
-from rp_jax.conditional.pairs import PairArrays
+from rp_jax.conditional.pairs import PairArrays, per_point_tables
 
 __all__ = ["make_sun_task"]
 
@@ -94,16 +94,7 @@ def make_sun_task(num_points: int, num_targets: int = 8, *, seed: int = 0
     outcome = (rng.random((n, k)) < probability).astype(np.int8)
 
     capture = _moment(cap_local, cap_el, cap_az)
-    points = {
-        "patch": _patches(kind, rng),
-        "xy_normalized": rng.uniform(0, 1, (n, 2)).astype(np.float32),
-        "category": np.full(n, -1, np.int32),
-        "outcome": outcome,
-        "table": np.arange(n, dtype=np.int32),
-        "own": np.full(n, -1, np.int32),
-        **{f"capture_{key}": value for key, value in capture.items()},
-    }
-    tables = _moment(tgt_local, tgt_el, tgt_az)
-    tables["slot"] = np.zeros((n, k), np.int32)
-    tables["valid"] = np.ones((n, k), bool)
-    return PairArrays(points, tables, [f"point{i}" for i in range(n)]), probability
+    patch = _patches(kind, rng)
+    xy = rng.uniform(0, 1, (n, 2)).astype(np.float32)
+    arrays = per_point_tables(patch, xy, outcome, capture, _moment(tgt_local, tgt_el, tgt_az))
+    return arrays, probability
