@@ -299,7 +299,7 @@ def main(argv, name: str, get_config, doc: str) -> int:
 
             sec4a_config.validate(config)
             # The workdir holds the paper's run: compared with the paper's fields.
-            sec4a_config.validate(conditional_config.paper_config(config), workdir)
+            train.check_workdir(workdir, conditional_config.paper_config(config))
             return conditional_crossval.run(config, Path(workdir) / "conditional",
                                             args.ablation, args.folds, quiet=args.quiet,
                                             prog=f"python -m experiments.{name}")
