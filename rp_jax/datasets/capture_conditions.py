@@ -13,9 +13,13 @@ misses. This module says, per capture, what is known of both, from what a user h
 * **weather** (a small schema a station record or a forecast can fill): ``cloud_cover``
   (0-1), ``precipitation`` (1 rain or snowfall, 0 dry), ``snow_cover`` (snow on the ground,
   0 none to 1 deep: the synthetic world's level / 4) and ``weather`` (an index into
-  ``WEATHERS``). Known here only for the synthetic Webcam Clip Art world, which draws it
-  per scene and day (``rp_jax.sources.synthetic.conditions``) from the scene seed its
-  ``scene.json`` records; NaN (``weather`` -1) elsewhere.
+  ``WEATHERS``). Known here only for the synthetic worlds, which draw it per scene and
+  day (``rp_jax.sources.synthetic.conditions``): the Webcam Clip Art world from the scene
+  seed its ``scene.json`` records; the Extended CMU Seasons world from the world seed its
+  marker (``_synthetic/``, ``output_folder.folder_parameters``) records, the image's slice
+  and time (``plan_cmu.slice_capture_conditions``: each slice's street seed, the reference
+  traversal's documented sunny sky), when the marker's world version is the renderer's
+  own. NaN (``weather`` -1) elsewhere: a real capture's weather is never invented.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Capture
 
 __all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "capture_places",
-           "location_of", "timezone_of"]
+           "location_of", "synthetic_cmu_conditions", "timezone_of"]
 
 # The weather kinds of the schema (the synthetic world's, which a station record maps onto).
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
@@ -91,24 +95,64 @@ def _synthetic_scene(scene_json: Path) -> tuple[int, float, float] | None:
         return None
 
 
+@functools.lru_cache(maxsize=64)
+def _synthetic_cmu_world(root: Path) -> int | None:
+    """The world seed of a synthetic Extended CMU Seasons layout at ``root`` rendered by
+    this world version; None for a real download (no marker) or another version."""
+    from rp_jax.sources.synthetic import output_folder, presets
+
+    marker = output_folder.folder_parameters(root)
+    if (not marker or marker.get("preset") != "cmu_seasons"
+            or marker.get("world") != presets.WORLD_VERSION):
+        return None
+    try:
+        return int(marker["seed"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def synthetic_cmu_conditions(image_path: str | Path, when):
+    """The renderer's ``conditions.Conditions`` of a synthetic CMU image
+    (``<root>/slice<N>/<database|query>/<name>``) captured at ``when``; None when the
+    image is not of a synthetic CMU world of this version (a real one, another layout)."""
+    path = Path(image_path)
+    if len(path.parents) < 3 or not path.parent.parent.name.startswith("slice"):
+        return None
+    try:
+        slice_id = int(path.parent.parent.name[len("slice"):])
+    except ValueError:
+        return None
+    seed = _synthetic_cmu_world(path.parents[2])
+    if seed is None:
+        return None
+    from rp_jax.sources.synthetic import plan_cmu  # the world that drew the weather
+
+    return plan_cmu.slice_capture_conditions(seed, slice_id, when)
+
+
+def _schema(c) -> tuple[float, float, float, int]:
+    """A synthetic ``Conditions`` in this module's weather schema."""
+    return (float(c.cloud_cover), float(c.weather in ("rain", "snow")), c.snow / 4.0,
+            WEATHERS.index(c.weather))
+
+
 def _synthetic_weather(capture: Capture) -> tuple[float, float, float, int] | None:
     scene = _synthetic_scene(Path(capture.image_path).parent / "scene.json")
     if scene is None:
-        return None
+        c = synthetic_cmu_conditions(capture.image_path, capture.time)
+        return None if c is None else _schema(c)
     from rp_jax.sources.synthetic import conditions  # the world that drew the weather
 
     seed, lat, lon = scene
-    c = conditions.conditions_at(seed, lat, lon, capture.time)
-    return (float(c.cloud_cover), float(c.weather in ("rain", "snow")), c.snow / 4.0,
-            WEATHERS.index(c.weather))
+    return _schema(conditions.conditions_at(seed, lat, lon, capture.time))
 
 
 def capture_conditions(captures: Sequence[Capture], dataset: str) -> dict[str, np.ndarray]:
     """What is known of each capture's sun and weather (``CONDITION_FIELDS``).
 
     Args:
-      captures: any captures (each read for its time, place and, for a synthetic Webcam
-        scene, its scene's ``scene.json``).
+      captures: any captures (each read for its time, place and, for a synthetic world,
+        what its layout records: a Webcam scene's ``scene.json``, a CMU world's marker).
       dataset: the dataset they come from (its data spec may give the place).
 
     Returns:

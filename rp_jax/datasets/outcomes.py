@@ -27,8 +27,11 @@ DATA_FORMATS.md.
 ``build(builder)`` writes it from the ground-truth cache the dataset was built with (a
 viewpoint whose outcomes were not cached is matched again; its features are cached), for
 exactly the records the build kept (the same ``select_records`` choice); a re-run skips
-the viewpoints already written. ``load(...)`` reads it and ``join`` lines it up with the
-records' columns.
+the viewpoints already written. A sidecar of an older format whose outcomes are still
+those of its images (format 2: the synthetic CMU world's weather was not read) has only
+its per-image fields written again (``image_conditions``), not its outcomes (its index
+keeps the old format until every file is written, so a killed run does it again).
+``load(...)`` reads it and ``join`` lines it up with the records' columns.
 """
 
 from __future__ import annotations
@@ -46,11 +49,15 @@ import numpy as np
 from rp_jax import files, worker_processes
 from rp_jax.datasets import capture_conditions
 
-__all__ = ["FORMAT_VERSION", "build", "join", "load", "sidecar_dir", "viewpoint_outcomes"]
+__all__ = ["FORMAT_VERSION", "build", "image_conditions", "join", "load", "sidecar_dir",
+           "viewpoint_outcomes"]
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 2  # 2: the camera's place and zone
+# 2: the camera's place and zone; 3: the synthetic CMU world's weather.
+FORMAT_VERSION = 3
+# Older formats whose rows are still valid: only the per-image fields change.
+_REFRESHABLE_FORMATS = (2,)
 SIDECAR_ROOT = "rp_jax_outcomes"
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")
@@ -81,12 +88,35 @@ def viewpoint_outcomes(job) -> dict[str, np.ndarray]:
             "row": np.arange(len(records["image_id"]))}
     kept = select_records(rows, job.records_per_image, job.seed)["row"]
     sidecar = {k: (np.asarray(out[k])[kept] if k in _ROW_KEYS else out[k]) for k in out}
-    conditions = capture_conditions.capture_conditions(captures, job.dataset)
-    sidecar.update({f"image_{k}": v for k, v in conditions.items()})
-    places = capture_conditions.capture_places(captures, job.dataset)
-    sidecar.update({f"image_{k}": v for k, v in places.items()})
-    sidecar["timezone"] = np.array(capture_conditions.timezone_of(captures[0]))
+    sidecar.update(image_conditions(captures, job.dataset))
     return sidecar
+
+
+def image_conditions(captures, dataset: str) -> dict[str, np.ndarray]:
+    """The per-image fields of a viewpoint's sidecar that are not outcomes: each image's
+    conditions (``image_<field>``), its camera's place and the viewpoint's ``timezone``."""
+    out = {f"image_{k}": v
+           for k, v in capture_conditions.capture_conditions(captures, dataset).items()}
+    places = capture_conditions.capture_places(captures, dataset)
+    out.update({f"image_{k}": v for k, v in places.items()})
+    out["timezone"] = np.array(capture_conditions.timezone_of(captures[0]))
+    return out
+
+
+def _refresh_one(job, path: Path) -> tuple[str, int]:
+    """Write the per-image fields of an older sidecar file again, its outcomes kept; the
+    whole file again when its images are not the job's."""
+    from rp_jax.groundtruth.cache import load_npz
+
+    sidecar = dict(load_npz(path))
+    captures = list(job.captures)
+    if list(np.asarray(sidecar["image_id"]).astype(str)) != [str(c.image_id)
+                                                             for c in captures]:
+        return _write_one(job, path)
+    sidecar.update(image_conditions(captures, job.dataset))
+    with files.replacing(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **sidecar)
+    return job.viewpoint, int(len(sidecar["outcome"]))
 
 
 def _file_of(directory: Path, split: str, viewpoint: str) -> Path:
@@ -124,23 +154,31 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
     jobs = builder.split_jobs(builder.local_download_manager(manual_dir))
     todo = [(job, _file_of(directory, split, job.viewpoint))
             for split, split_jobs in jobs.items() for job in split_jobs]
-    if (directory / _INDEX).is_file() and json.loads(
-            (directory / _INDEX).read_text()).get("format") != FORMAT_VERSION:
-        log.info("%s holds an older format: writing it again", directory)
-        for _, path in todo:
-            path.unlink(missing_ok=True)
-    todo = [(job, path) for job, path in todo if not path.exists()]
+    refresh = False
+    if (directory / _INDEX).is_file():
+        have = json.loads((directory / _INDEX).read_text()).get("format")
+        refresh = have in _REFRESHABLE_FORMATS
+        if have != FORMAT_VERSION:
+            if refresh:
+                log.info("%s holds format %s: writing its per-image fields again", directory,
+                         have)
+            else:
+                log.info("%s holds an older format: writing it again", directory)
+                for _, path in todo:
+                    path.unlink(missing_ok=True)
+    todo = [(job, path, _refresh_one if refresh and path.exists() else _write_one)
+            for job, path in todo if refresh or not path.exists()]
     bar = tqdm(total=len(todo), desc="outcomes", unit="viewpoint")
     try:
         if workers <= 1 or len(todo) <= 1:
-            for job, path in todo:
-                _write_one(job, path)
+            for job, path, write in todo:
+                write(job, path)
                 bar.update(1)
         else:
             spawn = mp.get_context("spawn")
             with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn,
                                         initializer=worker_processes.exit_with_parent) as pool:
-                for fut in cf.as_completed([pool.submit(_write_one, j, p) for j, p in todo]):
+                for fut in cf.as_completed([pool.submit(w, j, p) for j, p, w in todo]):
                     fut.result()
                     bar.update(1)
     finally:

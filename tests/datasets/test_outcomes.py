@@ -77,3 +77,26 @@ def test_sun_from_the_capture_place_and_nothing_invented_without_one():
     assert 60 < elevation < 75  # near noon at the solstice, 40 N
     assert np.isnan(got["sun_elevation_deg"][1]) and np.isnan(got["cloud_cover"]).all()
     assert (got["weather"] == -1).all()  # a real capture: no weather invented
+
+
+def test_older_format_gets_its_per_image_fields_again_and_keeps_its_outcomes(webcam):
+    import json
+
+    outcomes.build(webcam)
+    directory = outcomes.sidecar_dir(webcam._data_dir_root, "webcam_clipart", TINY,
+                                     webcam.version)
+    path = sorted(directory.rglob("*.npz"))[0]
+    with np.load(path) as z:
+        before = {k: z[k] for k in z.files}
+    stale = dict(before, image_cloud_cover=np.full_like(before["image_cloud_cover"], np.nan))
+    np.savez_compressed(path, **stale)
+    index = json.loads((directory / "outcomes.json").read_text())
+    (directory / "outcomes.json").write_text(json.dumps({**index, "format": 2}))
+    outcomes.build(webcam)
+    assert json.loads((directory / "outcomes.json").read_text())["format"] == \
+        outcomes.FORMAT_VERSION
+    with np.load(path) as z:
+        after = {k: z[k] for k in z.files}
+    assert set(after) == set(before)
+    for k in before:
+        np.testing.assert_array_equal(after[k], before[k], err_msg=k)

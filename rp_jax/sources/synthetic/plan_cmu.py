@@ -79,6 +79,9 @@ __all__ = [
     "build_reference_model",
     "cmu_cameras",
     "plan",
+    "slice_capture_conditions",
+    "slice_scene_seed",
+    "traversal_weather",
     "write_reference_model",
 ]
 
@@ -140,6 +143,30 @@ def cmu_cameras(scale: float) -> dict[str, Camera]:
     }
 
 
+def slice_scene_seed(seed: int, slice_id: int) -> int:
+    """The scene seed of slice ``slice_id``'s street in the world of ``seed`` (its layout,
+    and with the local date its weather and snow: ``conditions.conditions_at``)."""
+    return int(seeded_rng(seed, 10, slice_id).integers(0, 2**31 - 1))
+
+
+def traversal_weather(date: dt.date) -> str | None:
+    """The sky a traversal of ``date`` is rendered under: the reference traversal's
+    documented one (``REFERENCE_WEATHER``), else None (the day's weather is drawn)."""
+    return REFERENCE_WEATHER if date == REFERENCE_DATE else None
+
+
+def slice_capture_conditions(seed: int, slice_id: int, when: dt.datetime):
+    """The ``conditions.Conditions`` the renderer used for a frame of slice ``slice_id``
+    captured at ``when`` (timezone-aware) in the world of ``seed``: what a reader of the
+    written layout can recover from its marker's seed, the slice and the image's time."""
+    from rp_jax.sources.synthetic import conditions
+
+    local = when.astimezone(zoneinfo.ZoneInfo(CMU_TIMEZONE))
+    lat, lon = CMU_LOCATION
+    return conditions.conditions_at(slice_scene_seed(seed, slice_id), lat, lon, local,
+                                    traversal_weather(local.date()))
+
+
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
     """The frames of the ``cmu_seasons`` preset and its metadata writer."""
     spec = _CMU_SIZES[size]
@@ -154,7 +181,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
     for s_idx, slice_id in enumerate(spec.slices):
         route_length = spec.positions * spec.spacing_m + 10.0
         scene_spec = SceneSpec(
-            seed=int(seeded_rng(seed, 10, slice_id).integers(0, 2**31 - 1)),
+            seed=slice_scene_seed(seed, slice_id),
             kind="street",
             length_m=route_length + 20.0,
             latitude=lat,
@@ -211,7 +238,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                             if is_reference
                             else None
                         ),
-                        weather=REFERENCE_WEATHER if is_reference else None,
+                        weather=traversal_weather(date),
                     )
                     jobs.append(job)
                     poses[slice_id][folder].append((name, R, t))
