@@ -18,7 +18,13 @@ import datetime as dt
 
 import numpy as np
 
-__all__ = ["solar_position", "sun_direction", "refraction_deg", "unix_seconds"]
+__all__ = [
+    "refraction_deg",
+    "solar_position",
+    "sun_direction",
+    "sun_in_camera_frame",
+    "unix_seconds",
+]
 
 
 def unix_seconds(when: dt.datetime) -> float:
@@ -133,3 +139,27 @@ def sun_direction(elevation_deg: float | np.ndarray, azimuth_deg: float | np.nda
     el = np.radians(np.asarray(elevation_deg, dtype=np.float64))
     az = np.radians(np.asarray(azimuth_deg, dtype=np.float64))
     return np.stack([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)], axis=-1)
+
+
+def sun_in_camera_frame(elevation_deg, azimuth_deg, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sun's direction as the camera sees it (issue 17: "in the camera frame where the
+    pose is known"; Sec. V: which side of a facade is lit depends on where the sun is
+    relative to the view, not on the compass).
+
+    Args:
+      elevation_deg, azimuth_deg: the sun in the world frame (azimuth clockwise from north).
+      R: [3, 3] world-to-camera rotation (``x_cam = R @ X + t``; OpenCV camera axes: x right,
+        y down, z along the optical axis) of a world frame that is x east, y north, z up
+        (the synthetic world's; a real dataset's poses are geo-aligned only where it says so).
+
+    Returns:
+      (elevation, azimuth) in degrees, arrays of the inputs' shape: the elevation above the
+      camera's x-z plane (positive: the sun is above the optical axis), the azimuth about the
+      camera's y axis from the optical axis, positive to the right (0: the sun straight
+      ahead, behind the camera at +-180; NaN where the input is NaN).
+    """
+    direction = sun_direction(elevation_deg, azimuth_deg) @ np.asarray(R, np.float64).T
+    x, y, z = direction[..., 0], direction[..., 1], direction[..., 2]
+    elevation = np.degrees(np.arcsin(np.clip(-y, -1.0, 1.0)))
+    azimuth = np.degrees(np.arctan2(x, z))
+    return elevation, azimuth
