@@ -286,11 +286,13 @@ def main(argv, name: str, get_config, doc: str) -> int:
     from rp_jax import train
     from rp_jax.sources.layout import LayoutError
 
-    conditional = bool(args.ablation or config.model.conditions)
+    conditional = bool(args.ablation or config.model.conditions
+                       or config.model.get("decay_time_scales"))
     if conditional and not args.cross_validate:
         print(f"python -m experiments.{name}: error: the conditional predictor "
-              "(--config.model.conditions, --ablation) is measured on held-out training "
-              "viewpoints only in this release: add --cross-validate", file=sys.stderr)
+              "(--config.model.conditions, --config.model.decay_time_scales, --ablation) is "
+              "measured on held-out training viewpoints only in this release: add "
+              "--cross-validate", file=sys.stderr)
         return 2
     try:
         if conditional:  # beyond the paper: the paper's predictor and the conditional one

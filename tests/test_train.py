@@ -179,14 +179,15 @@ def test_a_flat_config_json_is_read_in_groups():
                        "eval": {"batch_size": 16, "knn_k": 4},
                        "model": {"encoder_features": 16, "time_fields": "day_of_year",
                                  "conditions": "", "conditional_hidden": 128,
-                                 "time_harmonics": 2},
+                                 "time_harmonics": 2, "decay_time_scales": ""},
                        "unknown_field": 1}
     assert default.upgrade(grouped) == grouped  # current: unchanged
     assert "conditions" not in flat["model"]  # the argument is not modified
     # A grouped config written before the conditional fields reads with their defaults.
     older = {"model": {"encoder_features": 16}, "train": {"num_epochs": 2}}
     assert default.upgrade(older)["model"] == {"encoder_features": 16, "conditions": "",
-                                               "conditional_hidden": 128, "time_harmonics": 2}
+                                               "conditional_hidden": 128, "time_harmonics": 2,
+                                               "decay_time_scales": ""}
 
 
 def test_a_workdir_written_before_the_grouping_resumes(tmp_path):

@@ -18,7 +18,7 @@ import ml_collections
 
 # The conditional predictor's fields of config.model (defaults in rp_jax/configs/default.py);
 # the paper's predictor is trained with them at their defaults (``paper_config``).
-MODEL_FIELDS = ("conditions", "conditional_hidden", "time_harmonics")
+MODEL_FIELDS = ("conditions", "conditional_hidden", "time_harmonics", "decay_time_scales")
 
 
 def get_config(arg: str = "small") -> ml_collections.ConfigDict:
@@ -29,6 +29,24 @@ def get_config(arg: str = "small") -> ml_collections.ConfigDict:
     config.train.keep_best = False
     config.input.validation_fraction = 0.0
     return config
+
+
+def decay_time_scales(config: ml_collections.ConfigDict) -> tuple[float, ...]:
+    """``config.model.decay_time_scales`` ("1,3,10") as years; () for "" (no decay basis).
+
+    Raises:
+      ValueError: an entry that is not a number of years > 0 (the message names the field).
+    """
+    text = config.model.get("decay_time_scales", "")
+    items = [s.strip() for s in str(text).split(",") if s.strip()]
+    try:
+        years = tuple(float(s) for s in items)
+    except ValueError:
+        years = ()
+    if len(years) != len(items) or any(not y > 0 for y in years):
+        raise ValueError(f"config.model.decay_time_scales={text!r}: expected a comma list of "
+                         "years > 0 (e.g. 1,3,10), or '' for no decay basis")
+    return years
 
 
 def paper_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:

@@ -15,21 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["year_of_one_point"]
+__all__ = ["load_params", "year_of_one_point"]
 
 _CLEAR = {"cloud_cover": 0.05, "precipitation": 0.0, "snow_cover": 0.0, "weather": 0}
 
 
-def _year_moments(zone: str, place, year: int = 2013) -> dict[str, np.ndarray]:
+def _year_moments(zone: str, place, year: int = 2013, with_year: bool = False
+                  ) -> dict[str, np.ndarray]:
     from rp_jax.conditional import inputs
 
     tz = zoneinfo.ZoneInfo(zone) if zone else dt.UTC
     start = dt.datetime(year, 1, 1, tzinfo=tz)
     times = [start + dt.timedelta(days=d, hours=h) for d in range(365) for h in range(24)]
-    return inputs.moment_at(times, place=place, weather=_CLEAR)
+    return inputs.moment_at(times, place=place, weather=_CLEAR, with_year=with_year)
 
 
-def _load_params(net, path: Path):
+def load_params(net, path: Path):
+    """The params a run saved (``params.msgpack``) for the network ``net``."""
     import jax
     from flax import serialization
 
@@ -57,6 +59,7 @@ def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from experiments.conditional import config as config_lib
     from experiments.conditional import crossval
     from rp_jax import files
     from rp_jax.model import preprocess_patches
@@ -66,7 +69,8 @@ def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path)
     index = int(np.nanargmax(np.nanstd(spread, axis=1)))  # the point whose y^j varies most
     side = sidecar[held.viewpoints[p["table"][index]]]
     place = (float(side["image_latitude"][0]), float(side["image_longitude"][0]))
-    year = _year_moments(str(side["timezone"]), place)
+    year = _year_moments(str(side["timezone"]), place,  # a decay basis reads the year too
+                         with_year=bool(config_lib.decay_time_scales(config)))
     capture = {k[len("capture_"):]: jnp.asarray(v[index:index + 1])
                for k, v in p.items() if k.startswith("capture_")}
     target = {k: jnp.asarray(v)[None] for k, v in year.items()}
@@ -76,7 +80,7 @@ def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path)
     for ax, conditions in zip(axes[:, 0], variants):
         name = crossval.variant_name(conditions)
         net = crossval._network(config, conditions)
-        params = _load_params(net, run_dir / name / "params.msgpack")
+        params = load_params(net, run_dir / name / "params.msgpack")
         logits = jax.jit(net.apply)({"params": params},
                                     preprocess_patches(jnp.asarray(p["patch"][index:index + 1])),
                                     jnp.asarray(p["xy_normalized"][index:index + 1]), capture,

@@ -53,10 +53,13 @@ def get_config() -> ml_collections.ConfigDict:
     # Beyond the paper (rp_jax.conditional, issue 17): with conditions set, the Sec. IV-A
     # experiments' --cross-validate also trains the conditional predictor, which scores one
     # image pair from the capture's and the target's time and these conditions; the paper's
-    # predictor never reads these three fields.
+    # predictor never reads these four fields.
     m.conditions = ""  # comma list of sun, weather, semantics; "" = the paper's predictor only
     m.conditional_hidden = 128  # conditional predictor: width of the point code and pair layers
     m.time_harmonics = 2  # conditional predictor: sin/cos multiples of the time-of-day angle
+    # conditional predictor: the long-term decay basis's time scales, a comma list of years
+    # ("1,3,10": rp_jax.conditional.inputs.DECAY_TIME_SCALES_YEARS); "" = no decay basis
+    m.decay_time_scales = ""
 
     # Optimisation (optax), checkpoints (orbax) and devices.
     t = config.train = ml_collections.ConfigDict()
@@ -114,6 +117,7 @@ ADDED_FIELDS = {
     "model.conditions": "",
     "model.conditional_hidden": 128,
     "model.time_harmonics": 2,
+    "model.decay_time_scales": "",
 }
 
 
