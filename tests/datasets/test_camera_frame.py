@@ -1,0 +1,51 @@
+"""A capture's geo-aligned camera orientation: the renderer's own, a scene.json heading, or none."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rp_jax import sun
+from rp_jax.datasets import camera_frame
+from rp_jax.sources.synthetic import output_folder, presets
+
+
+def _mark(root, preset, world=presets.WORLD_VERSION):
+    output_folder.mark(root, {"generator": output_folder.GENERATOR, "preset": preset,
+                              "size": "tiny", "seed": 2, "world": world})
+
+
+@pytest.mark.parametrize("preset", ["webcam_clipart", "cmu_seasons"])
+def test_synthetic_frames_get_the_renderers_rotation(tmp_path, preset):
+    jobs = presets.plan(preset, tmp_path, size="tiny", seed=2).jobs
+    _mark(tmp_path, preset)
+    camera_frame._planned_rotations.cache_clear()
+    for job in jobs[:: max(1, len(jobs) // 7)]:
+        np.testing.assert_array_equal(camera_frame.camera_rotation(job.image_path), job.R)
+    assert camera_frame.camera_rotation(tmp_path / jobs[0].image_path.parent.name / "x.jpg") is None
+
+
+def test_another_world_version_or_no_marker_is_unknown(tmp_path):
+    jobs = presets.plan("webcam_clipart", tmp_path, size="tiny", seed=2).jobs
+    assert camera_frame.camera_rotation(jobs[0].image_path) is None  # a download: no marker
+    _mark(tmp_path, "webcam_clipart", world=presets.WORLD_VERSION - 1)
+    camera_frame._planned_rotations.cache_clear()
+    assert camera_frame.camera_rotation(jobs[0].image_path) is None
+
+
+def test_scene_json_heading_gives_a_level_camera(tmp_path):
+    scene = tmp_path / "my_webcam"
+    scene.mkdir()
+    (scene / "scene.json").write_text(json.dumps({"camera_heading_deg": 250.0}))
+    R = camera_frame.camera_rotation(scene / "20120101_120000.jpg")
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    el, az = sun.sun_in_camera_frame(20.0, 250.0 + 30.0, R)  # 30 deg right of the view
+    np.testing.assert_allclose([el, az], [20.0, 30.0], atol=1e-9)
+    (scene / "scene.json").write_text(json.dumps({"camera_heading_deg": 0.0,
+                                                  "camera_tilt_deg": 10.0}))
+    camera_frame._scene_heading.cache_clear()
+    el, az = sun.sun_in_camera_frame(10.0, 0.0, camera_frame.camera_rotation(scene / "a.jpg"))
+    np.testing.assert_allclose([el, az], [0.0, 0.0], atol=1e-9)  # straight along the tilted axis
+    (scene / "scene.json").write_text(json.dumps({"latitude": 40.0}))
+    camera_frame._scene_heading.cache_clear()
+    assert camera_frame.camera_rotation(scene / "a.jpg") is None
