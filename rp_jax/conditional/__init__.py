@@ -12,11 +12,13 @@ trained on the per-pair outcomes the ground truth averages into y^j
 time is a query (a continuous time encoding, no slots), and the paper's T-vector is the
 mean probability over a timestamp's targets (``model.t_vector``), so the two predictors are
 scored on the same labels. Conditions are each optional (``inputs.CONDITIONS``): ``sun``,
-``weather``, ``semantics``.
+``weather``, ``semantics``, ``appearance`` (a global descriptor of the image itself,
+``appearance``).
 
 Modules: ``inputs`` (pure encodings of time and conditions), ``model`` (the Flax module,
 the loss, the T-vector, an opt-in long-term decay basis over the years between capture
 and target), ``sun_task`` (a learnable task whose answer depends on the sun), ``decay_task``
 (one whose answer decays over the years at a rate set by the patch),
-``pairs`` (records + sidecar -> arrays and batches) and ``train`` (the fit loop).
+``pairs`` (records + sidecar -> arrays and batches), ``train`` (the fit loop) and
+``appearance`` (the descriptor).
 """

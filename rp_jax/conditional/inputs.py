@@ -8,7 +8,10 @@ A *moment* is a dict of arrays of one shape ``S`` (a batch, or a batch by target
   unknown), read only with the ``sun`` condition;
 * ``cloud_cover``, ``precipitation``, ``snow_cover`` (0-1; NaN unknown) and ``weather``
   (index into ``rp_jax.datasets.capture_conditions.WEATHERS``, -1 unknown), read only
-  with the ``weather`` condition.
+  with the ``weather`` condition;
+* ``APPEARANCE_KEYS`` (``rp_jax.conditional.appearance``: a global descriptor of the image
+  itself, NaN unknown), read only with the ``appearance`` condition: what a localization
+  query knows of its own conditions without any record (issue 17).
 
 The time is encoded continuously: the angle of the time of day as sin/cos of its first
 ``harmonics`` multiples, the day of the year as one sin/cos pair (``rp_jax.time_encoding``'s
@@ -26,7 +29,10 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from rp_jax.conditional.appearance import APPEARANCE_KEYS
+
 __all__ = [
+    "APPEARANCE_KEYS",
     "CONDITIONS",
     "DECAY_TIME_SCALES_YEARS",
     "MOMENT_KEYS",
@@ -44,7 +50,7 @@ __all__ = [
     "years_between",
 ]
 
-CONDITIONS = ("sun", "weather", "semantics")
+CONDITIONS = ("sun", "weather", "semantics", "appearance")
 TIME_KEYS = ("hour", "minute", "day", "month")
 SUN_KEYS = ("sun_elevation_deg", "sun_azimuth_deg")
 WEATHER_KEYS = ("cloud_cover", "precipitation", "snow_cover", "weather")
@@ -63,7 +69,8 @@ _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype
 
 
 def moment_at(times, *, place: tuple[float, float] | None = None,
-              weather: dict | None = None, with_year: bool = False) -> dict[str, np.ndarray]:
+              weather: dict | None = None, with_year: bool = False,
+              appearance: dict | None = None) -> dict[str, np.ndarray]:
     """The moment of timezone-aware datetimes (any instants): a query's target or capture.
 
     Args:
@@ -73,9 +80,12 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
       weather: arrays or scalars of ``WEATHER_KEYS`` (a station record, a forecast); None
         leaves it unknown.
       with_year: also ``YEAR_KEY`` (what a model with a decay basis reads).
+      appearance: arrays or scalars of ``APPEARANCE_KEYS`` (``appearance.describe`` of the
+        image taken then); None leaves it unknown (NaN).
 
     Returns:
-      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32) [and ``year``].
+      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32) and ``APPEARANCE_KEYS``
+      [and ``year``].
     """
     from rp_jax import sun as sunlib
 
@@ -95,6 +105,11 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
         if key not in WEATHER_KEYS:
             raise ValueError(f"unknown weather field {key!r}; expected {WEATHER_KEYS}")
         out[key] = np.broadcast_to(np.asarray(value, out[key].dtype), (n,)).copy()
+    out.update({k: np.full(n, np.nan, np.float32) for k in APPEARANCE_KEYS})
+    for key, value in (appearance or {}).items():
+        if key not in APPEARANCE_KEYS:
+            raise ValueError(f"unknown appearance field {key!r}; expected {APPEARANCE_KEYS}")
+        out[key] = np.broadcast_to(np.asarray(value, np.float32), (n,)).copy()
     return out
 
 
@@ -193,20 +208,37 @@ def _weather(moment) -> list[jnp.ndarray]:
     return out + [onehot[..., i] for i in range(_NUM_WEATHERS)]
 
 
+def _appearance(moment) -> list[jnp.ndarray]:
+    """The appearance descriptor's entries (0 where unknown) and one known flag (all known)."""
+    missing = [k for k in APPEARANCE_KEYS if k not in moment]
+    if missing:
+        raise ValueError(f"the appearance condition reads the moments' {missing}; give them "
+                         "(moment_at(..., appearance=...), NaN for unknown)")
+    values = [jnp.asarray(moment[k], jnp.float32) for k in APPEARANCE_KEYS]
+    known = jnp.ones_like(values[0])
+    for v in values:
+        known = known * jnp.isfinite(v)
+    return [jnp.where(known > 0, v, 0.0) for v in values] + [known]
+
+
 def capture_features(moment, conditions: tuple[str, ...], harmonics: int = 2) -> jnp.ndarray:
-    """The capture's time (and sun, weather) as a float32 vector per element: ``S + (d,)``."""
+    """The capture's time (and sun, weather, appearance) as a float32 vector per element:
+    ``S + (d,)``."""
     parts = _time(moment, harmonics)
     if "sun" in conditions:
         vec, known = _sun_vector(moment)
         parts += [vec[..., i] for i in range(3)] + [known]
     if "weather" in conditions:
         parts += _weather(moment)
+    if "appearance" in conditions:
+        parts += _appearance(moment)
     return jnp.stack(parts, axis=-1)
 
 
 def target_features(capture, target, conditions: tuple[str, ...],
                     harmonics: int = 2) -> jnp.ndarray:
-    """A target's time (and sun, weather) and its difference to the capture: ``S + (d,)``.
+    """A target's time (and sun, weather, appearance) and its difference to the capture:
+    ``S + (d,)``.
 
     ``capture`` holds arrays of shape ``B``, ``target`` of ``B + (K,)`` (K targets each).
     The sun's part includes the cosine of the angle between the capture's and the target's
@@ -224,6 +256,8 @@ def target_features(capture, target, conditions: tuple[str, ...],
                                                     known * cap_known[..., None]]
     if "weather" in conditions:
         parts += _weather(target)
+    if "appearance" in conditions:
+        parts += _appearance(target)
     return jnp.stack(parts, axis=-1)
 
 

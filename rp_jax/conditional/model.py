@@ -4,12 +4,12 @@
 
 ``encode`` runs the patch encoder of the paper's predictor (``rp_jax.model.PatchEncoder``)
 once per interest point and mixes in its position, its capture time and (by
-``conditions``) the capture's sun and weather and the point's semantic class; ``score``
-turns that code and any number of targets (time, its difference to the capture, the
-target's sun and weather) into one logit each: the log-odds that the point is re-detected
-and matched as an inlier in an image taken then. ``__call__`` does both, for [B] points
-and [B, K] targets. Everything is a pure function of ``params``: ``jax.jit``, ``jax.vmap``
-(over targets or points) and ``jax.grad`` compose with it.
+``conditions``) the capture's sun, weather and appearance and the point's semantic class;
+``score`` turns that code and any number of targets (time, its difference to the capture,
+the target's sun, weather and appearance) into one logit each: the log-odds that the point
+is re-detected and matched as an inlier in an image taken then. ``__call__`` does both, for
+[B] points and [B, K] targets. Everything is a pure function of ``params``: ``jax.jit``,
+``jax.vmap`` (over targets or points) and ``jax.grad`` compose with it.
 
 With ``decay_time_scales`` (opt-in; issue 17's long-term decay) the logit gains
 ``sum_b c_b(code) * phi_b(capture, target)``: the basis ``inputs.decay_basis`` of the years
@@ -119,7 +119,7 @@ class ConditionalPredictor(nn.Module):
 
 
 def _zeros_moment(shape, with_year: bool = False) -> dict:
-    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
+    keys = inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
     return {k: jnp.zeros(shape) for k in keys}
 
 

@@ -29,7 +29,8 @@ class PairArrays:
       points: ``patch`` uint8 [N, 64, 64, 3], ``xy_normalized`` float32 [N, 2],
         ``category`` int32 [N], ``outcome`` int8 [N, K] (1, 0, -1 unknown or padding),
         ``table`` int32 [N], ``own`` int32 [N], and ``capture_<key>`` [N] for each of
-        ``inputs.MOMENT_KEYS``; optionally ``label`` / ``label_mask`` [N, T] (y^j).
+        ``inputs.MOMENT_KEYS`` (and, from records, ``inputs.APPEARANCE_KEYS``); optionally
+        ``label`` / ``label_mask`` [N, T] (y^j).
       tables: ``<key>`` [V, K] for each of ``inputs.MOMENT_KEYS``, ``slot`` int32 [V, K],
         ``valid`` bool [V, K] (a readable image; False for padding); with ``year``
         (``from_records(..., with_year=True)``) also ``year`` [V, K] and the points'
@@ -91,7 +92,8 @@ def batch(arrays: PairArrays, index: np.ndarray, size: int | None = None) -> dic
     num_targets = t["slot"].shape[1]
     out = {k: p[k][index] for k in ("patch", "xy_normalized", "category", "outcome")}
     out["mask"] = np.arange(size) < n
-    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if inputs.YEAR_KEY in t else ())
+    keys = inputs.MOMENT_KEYS + tuple(k for k in inputs.APPEARANCE_KEYS + (inputs.YEAR_KEY,)
+                                      if k in t)
     out["capture"] = {k: p[f"capture_{k}"][index] for k in keys}
     out["target"] = {k: t[k][table] for k in keys}
     out["target_slot"] = t["slot"][table]
@@ -111,6 +113,8 @@ def _table_moment(side: Mapping[str, np.ndarray], with_year: bool = False
         out[inputs.YEAR_KEY] = time[:, 0]
     for key in inputs.SUN_KEYS + inputs.WEATHER_KEYS:  # the sidecar's image_<condition>
         out[key] = np.asarray(side[f"image_{key}"])
+    for key in inputs.APPEARANCE_KEYS:  # NaN (unknown) in a sidecar without them
+        out[key] = np.asarray(side.get(f"image_{key}", np.full(len(time), np.nan)))
     return {k: np.asarray(v, np.int32 if k == "weather" else np.float32) for k, v in out.items()}
 
 
@@ -129,7 +133,8 @@ def from_records(columns: Mapping[str, np.ndarray],
     viewpoints = sorted(sidecar)
     width = max(len(sidecar[v]["image_id"]) for v in viewpoints)
     V = len(viewpoints)
-    keys = inputs.MOMENT_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
+    keys = inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + ((inputs.YEAR_KEY,) if with_year
+                                                          else ())
     tables = {k: np.zeros((V, width), np.int32 if k == "weather" else np.float32)
               for k in keys}
     tables["weather"][:] = -1

@@ -37,7 +37,7 @@ from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Capture
 
 __all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "capture_places",
-           "location_of", "synthetic_cmu_conditions", "timezone_of"]
+           "location_of", "synthetic_cmu_conditions", "timezone_of", "weather_record"]
 
 # The weather kinds of the schema (the synthetic world's, which a station record maps onto).
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
@@ -145,6 +145,20 @@ def _synthetic_weather(capture: Capture) -> tuple[float, float, float, int] | No
 
     seed, lat, lon = scene
     return _schema(conditions.conditions_at(seed, lat, lon, capture.time))
+
+
+def weather_record(image_path: str | Path, when) -> dict[str, float] | None:
+    """The weather of one image in the schema's fields (``cloud_cover``, ``precipitation``,
+    ``snow_cover``, ``weather``) where its world records it (a synthetic Webcam or CMU
+    image), else None: what a station record would give a real user at that instant."""
+    from rp_jax.sources.capture import Camera
+
+    capture = Capture(Path(image_path), when, Camera("PINHOLE", 1, 1, np.eye(3)), "")
+    weather = _synthetic_weather(capture)
+    if weather is None:
+        return None
+    return dict(zip(("cloud_cover", "precipitation", "snow_cover", "weather"), weather,
+                    strict=True))
 
 
 def capture_conditions(captures: Sequence[Capture], dataset: str) -> dict[str, np.ndarray]:

@@ -18,7 +18,8 @@ image or an unreadable one), ``row_image`` int32 [N] (its own image), ``keypoint
 int32 [N]; per image of the viewpoint (every capture, readable or not): ``image_id``,
 ``image_readable``, ``image_time`` int32 [n, 6] (``groundtruth.TIME_FIELDS``, local wall
 clock), ``image_unix_time`` float64, ``image_cycle``, ``image_slot`` and the conditions
-``image_<field>`` of ``capture_conditions.CONDITION_FIELDS`` (NaN / -1 unknown), the
+``image_<field>`` of ``capture_conditions.CONDITION_FIELDS`` (NaN / -1 unknown) and of
+``rp_jax.conditional.appearance.APPEARANCE_KEYS`` (the image's own look; NaN unreadable), the
 camera's ``image_latitude`` / ``image_longitude`` (NaN unknown); ``viewpoint`` and
 ``timezone`` (0-d str: the IANA zone of the images' clock, "" unknown), so a query at any
 instant can be made at the viewpoint's place and clock. Documented in the design notes'
@@ -28,7 +29,7 @@ DATA_FORMATS.md.
 viewpoint whose outcomes were not cached is matched again; its features are cached), for
 exactly the records the build kept (the same ``select_records`` choice); a re-run skips
 the viewpoints already written. A sidecar of an older format whose outcomes are still
-those of its images (format 2: the synthetic CMU world's weather was not read) has only
+those of its images (format 2: no synthetic CMU weather; 3: no appearance) has only
 its per-image fields written again (``image_conditions``), not its outcomes (its index
 keeps the old format until every file is written, so a killed run does it again).
 ``load(...)`` reads it and ``join`` lines it up with the records' columns.
@@ -54,10 +55,11 @@ __all__ = ["FORMAT_VERSION", "build", "image_conditions", "join", "load", "sidec
 
 log = logging.getLogger(__name__)
 
-# 2: the camera's place and zone; 3: the synthetic CMU world's weather.
-FORMAT_VERSION = 3
+# 2: the camera's place and zone; 3: the synthetic CMU world's weather; 4: each image's
+# appearance descriptor.
+FORMAT_VERSION = 4
 # Older formats whose rows are still valid: only the per-image fields change.
-_REFRESHABLE_FORMATS = (2,)
+_REFRESHABLE_FORMATS = (2, 3)
 SIDECAR_ROOT = "rp_jax_outcomes"
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")
@@ -94,9 +96,14 @@ def viewpoint_outcomes(job) -> dict[str, np.ndarray]:
 
 def image_conditions(captures, dataset: str) -> dict[str, np.ndarray]:
     """The per-image fields of a viewpoint's sidecar that are not outcomes: each image's
-    conditions (``image_<field>``), its camera's place and the viewpoint's ``timezone``."""
+    conditions (``image_<field>``), its appearance (``image_appearance_*``, from its file;
+    NaN if unreadable), its camera's place and the viewpoint's ``timezone``."""
+    from rp_jax.conditional import appearance
+
     out = {f"image_{k}": v
            for k, v in capture_conditions.capture_conditions(captures, dataset).items()}
+    out.update({f"image_{k}": v for k, v in
+                appearance.describe_files([c.image_path for c in captures]).items()})
     places = capture_conditions.capture_places(captures, dataset)
     out.update({f"image_{k}": v for k, v in places.items()})
     out["timezone"] = np.array(capture_conditions.timezone_of(captures[0]))
@@ -144,6 +151,7 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
     Raises:
       ValueError: the dataset is not built (the records the rows must match are not there).
     """
+    from rp_jax.conditional import appearance
     from rp_jax.progress import bar as tqdm  # the one progress helper
 
     if not builder.is_prepared():
@@ -189,6 +197,7 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
         "config": builder.builder_config.name,
         "version": str(builder.version),
         "condition_fields": list(capture_conditions.CONDITION_FIELDS),
+        "appearance_fields": list(appearance.APPEARANCE_KEYS),
         "weathers": list(capture_conditions.WEATHERS),
         "splits": {
             split: {job.viewpoint: int(len(np.load(_file_of(directory, split, job.viewpoint),

@@ -6,9 +6,11 @@ probability that one observation of a point is re-detected and matched in an ima
 *at a given instant and conditions*. Here every observation of the map is encoded once (its
 patch, position, capture time and conditions: ``ConditionalScorer.encode``) and, for a
 query, scored at the query's time and conditions (the sun from the time and the camera's
-place; the weather where it is known, else unknown); a point's score is the mean over its
-observations (``mean_over_observations``), as the paper's point repeatability is the mean
-of its observations' (Sec. V-A-1).
+place; the weather where it is known, else unknown; the query image's own appearance,
+``rp_jax.conditional.appearance``); a point's score is the mean over its observations
+(``mean_over_observations``), as the paper's point repeatability is the mean of its
+observations' (Sec. V-A-1). ``image_conditions`` gives one image's weather record and
+appearance, the same fields the per-pair outcomes the model learnt from hold.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 __all__ = [
     "ConditionalScorer",
     "dataset_place",
+    "image_conditions",
     "mean_over_observations",
     "observation_codes",
 ]
@@ -37,6 +40,38 @@ def dataset_place(dataset: str) -> tuple[float, float] | None:
         return float(location["latitude"]), float(location["longitude"])
     except (KeyError, TypeError, ValueError):
         return None
+
+
+def image_conditions(image_path, when: dt.datetime,
+                     rgb: np.ndarray | None = None) -> tuple[dict | None, dict]:
+    """(weather, appearance) of one image: its world's weather record where there is one
+    (``capture_conditions.weather_record``; None: unknown) and the appearance descriptor of
+    its pixels as stored (``rgb``, else read from ``image_path``; NaN if unreadable)."""
+    from rp_jax.conditional import appearance
+    from rp_jax.datasets.capture_conditions import weather_record
+
+    if rgb is None:
+        look = {k: float(v[0]) for k, v in appearance.describe_files([image_path]).items()}
+    else:
+        look = appearance.describe(rgb)
+    return weather_record(image_path, when), look
+
+
+def stack_conditions(records: Sequence[tuple[dict | None, dict]]) -> tuple[dict, dict]:
+    """``image_conditions`` of n images as (weather, appearance) arrays [n] (NaN / -1
+    where a weather record is missing), what ``ConditionalScorer.moments`` takes."""
+    from rp_jax.conditional.inputs import APPEARANCE_KEYS, WEATHER_KEYS
+
+    n = len(records)
+    weather = {k: np.full(n, np.nan, np.float32) for k in WEATHER_KEYS[:-1]}
+    weather["weather"] = np.full(n, -1, np.int32)
+    look = {k: np.full(n, np.nan, np.float32) for k in APPEARANCE_KEYS}
+    for i, (w, a) in enumerate(records):
+        for k, v in (w or {}).items():
+            weather[k][i] = v
+        for k, v in a.items():
+            look[k][i] = v
+    return weather, look
 
 
 def mean_over_observations(obs_scores: np.ndarray, obs_point: np.ndarray,
@@ -84,11 +119,12 @@ class ConditionalScorer:
     place: tuple[float, float] | None = None
     batch_size: int = 512
 
-    def moments(self, times: Sequence[dt.datetime], weather: dict | None = None) -> dict:
+    def moments(self, times: Sequence[dt.datetime], weather: dict | None = None,
+                appearance: dict | None = None) -> dict:
         """``inputs.moment_at`` of ``times`` at this camera's place."""
         from rp_jax.conditional.inputs import moment_at
 
-        return moment_at(times, place=self.place, weather=weather)
+        return moment_at(times, place=self.place, weather=weather, appearance=appearance)
 
     def encode(self, patches: np.ndarray, xy_normalized: np.ndarray, capture: dict,
                category: np.ndarray | None = None) -> np.ndarray:
@@ -121,6 +157,24 @@ class ConditionalScorer:
                                         {k: v[s:e] for k, v in capture.items()}, tgt))[:, 0]
         return out
 
+    def probabilities_at(self, codes: np.ndarray, capture: dict, targets: dict,
+                         chunk: int = 64) -> np.ndarray:
+        """[n, K] probability of each observation in each of K targets (a moment of arrays
+        [K]: each query's time and conditions), ``chunk`` targets per call."""
+        _, score = _compiled(self.net)
+        n, K = len(codes), len(targets["hour"])
+        out = np.zeros((n, K), np.float64)
+        for a in range(0, K, chunk):
+            b = min(a + chunk, K)
+            for s in range(0, n, self.batch_size):
+                e = min(s + self.batch_size, n)
+                tgt = {k: np.broadcast_to(np.asarray(v)[None, a:b], (e - s, b - a))
+                       for k, v in targets.items()}
+                out[s:e, a:b] = np.asarray(score(self.params, codes[s:e],
+                                                 {k: v[s:e] for k, v in capture.items()},
+                                                 tgt))
+        return out
+
     def point_scores(self, codes: np.ndarray, capture: dict, obs_point: np.ndarray,
                      num_points: int, when: dt.datetime,
                      weather: dict | None = None) -> np.ndarray:
@@ -135,24 +189,27 @@ def observation_codes(scorer: ConditionalScorer, rec, map_points, image_dir,
     """Every observation of the map encoded once: (codes [n_obs, hidden], capture moments).
 
     The capture moment is the database image's time (``cmu_capture_time``) and, with the
-    scorer's place, its sun; the weather of a map image is unknown (as in the per-pair
-    outcomes the model is trained on, where the CMU world records none).
+    scorer's place, its sun, its weather where its world records it and its appearance
+    (``image_conditions``), as in the per-pair outcomes the model is trained on.
     """
     from rp_jax.mapsum.observations import cmu_capture_time, map_images
 
     n_obs = map_points.num_observations
     codes = np.full((n_obs, int(scorer.net.hidden)), np.nan, np.float32)
     whens: list = [None] * n_obs
+    conditions: list = [None] * n_obs
     for image in map_images(rec, map_points, image_dir, cmu_capture_time,
                             desc="map conditional codes", progress=progress):
         rows = image.rows
         w, h = image.size
         xy = np.clip(image.xy / np.array([w, h], np.float32), 0.0, 1.0)
-        capture = scorer.moments([image.when] * len(rows))
+        record = image_conditions(image.path, image.when, image.stored)
+        weather, look = stack_conditions([record] * len(rows))
+        capture = scorer.moments([image.when] * len(rows), weather, look)
         cat = None if obs_category is None else obs_category[rows]
         codes[rows] = scorer.encode(image.patches(), xy, capture, cat)
         for r in rows:
-            whens[r] = image.when
+            whens[r], conditions[r] = image.when, record
     if any(w is None for w in whens):
         raise ValueError("some observations reference images missing from the model")
-    return codes, scorer.moments(whens)
+    return codes, scorer.moments(whens, *stack_conditions(conditions))

@@ -29,7 +29,8 @@ def _moment(shape, rng):
                "precipitation": rng.integers(0, 2, len(times)),
                "snow_cover": rng.uniform(0, 1, len(times)),
                "weather": rng.integers(0, 5, len(times))}
-    m = inputs.moment_at(times, place=PLACE, weather=weather)
+    look = {k: rng.uniform(-1, 1, len(times)) for k in inputs.APPEARANCE_KEYS}
+    m = inputs.moment_at(times, place=PLACE, weather=weather, appearance=look)
     return {k: v.reshape(shape) for k, v in m.items()}
 
 
@@ -47,8 +48,10 @@ def tiny():
 def test_parse_conditions():
     assert inputs.parse_conditions("") == ()
     assert inputs.parse_conditions(" weather, sun") == ("sun", "weather")
-    assert inputs.parse_conditions("sun,weather,semantics") == inputs.CONDITIONS
-    with pytest.raises(ValueError, match="unknown conditions.*known: sun, weather, semantics"):
+    assert inputs.parse_conditions("sun,weather,semantics") == inputs.CONDITIONS[:3]
+    assert inputs.parse_conditions("appearance,sun,weather,semantics") == inputs.CONDITIONS
+    with pytest.raises(ValueError, match="unknown conditions.*known: sun, weather, semantics, "
+                                         "appearance"):
         inputs.parse_conditions("sun,rain")
 
 
@@ -94,11 +97,12 @@ def test_each_condition_is_read_only_when_selected(tiny):
         "sun": {**target, "sun_elevation_deg": target["sun_elevation_deg"] + 20.0},
         "weather": {**target, "weather": (target["weather"] + 1) % 5,
                     "cloud_cover": 1.0 - target["cloud_cover"]},
+        "appearance": {**target, "appearance_log_luma": target["appearance_log_luma"] - 0.5},
     }
     target_features = jax.jit(inputs.target_features, static_argnums=2)
     capture_features = jax.jit(inputs.capture_features, static_argnums=1)
     first = {k: v[:, 0] for k, v in target.items()}
-    for conditions in ((), ("sun",), ("weather",)):
+    for conditions in ((), ("sun",), ("weather",), ("appearance",)):
         base = target_features(capture, target, conditions)
         base_capture = capture_features(first, conditions)
         for condition, changed in changes.items():
@@ -113,6 +117,17 @@ def test_each_condition_is_read_only_when_selected(tiny):
     unknown = {**target, "sun_elevation_deg": jnp.full((3, 5), jnp.nan),
                "cloud_cover": jnp.full((3, 5), jnp.nan), "weather": jnp.full((3, 5), -1)}
     assert np.isfinite(target_features(capture, unknown, ("sun", "weather"))).all()
+    # The appearance likewise: unknown (NaN) is zeros and a known flag of 0.
+    blind = {**target, "appearance_contrast": jnp.full((3, 5), jnp.nan)}
+    got = target_features(capture, blind, ("appearance",))
+    assert np.isfinite(got).all()
+    n = len(inputs.APPEARANCE_KEYS)
+    np.testing.assert_array_equal(got[..., -(n + 1):], 0.0)
+    known = target_features(capture, target, ("appearance",))[..., -1]
+    np.testing.assert_array_equal(known, 1.0)
+    with pytest.raises(ValueError, match="appearance"):  # a moment without them is refused
+        inputs.capture_features({k: v[:, 0] for k, v in target.items()
+                                 if k not in inputs.APPEARANCE_KEYS}, ("appearance",))
 
 
 def test_loss_reads_only_known_pairs():

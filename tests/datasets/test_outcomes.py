@@ -1,15 +1,18 @@
 """The per-pair outcome sidecar of a built dataset: joined to the records, labels recovered."""
 
 import datetime as dt
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rp_jax import sun
+from rp_jax.conditional import appearance
 from rp_jax.datasets import __main__ as datasets_cli
 from rp_jax.datasets import capture_conditions, loading, outcomes
 from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.schedule import preset
+from rp_jax.sources import images
 from rp_jax.sources.capture import Camera, Capture
 from tests.datasets._tiny import TINY, build_tiny, shared_data_dir
 
@@ -47,6 +50,15 @@ def test_sidecar_joins_every_record_and_averages_into_its_label(webcam, capsys):
             assert np.isfinite(s["image_cloud_cover"]).all()
             assert np.isfinite(s["image_sun_elevation_deg"]).all()
             assert np.isfinite(s["image_latitude"]).all() and str(s["timezone"]).count("/")
+            # Each readable image's appearance, as its file describes it.
+            look = np.stack([s[f"image_{k}"] for k in appearance.APPEARANCE_KEYS], -1)
+            assert np.isfinite(look[s["image_readable"]]).all()
+    first_image = side[vp]["image_id"][0]
+    path = next(p for p in Path(webcam._data_dir_root).parent.rglob(Path(first_image).name)
+                if p.suffix in (".jpg", ".png"))
+    expected = appearance.describe(images.read_rgb(path))
+    for k in appearance.APPEARANCE_KEYS:
+        assert side[vp][f"image_{k}"][0] == np.float32(expected[k]), k
     # Written once: a second run rewrites only the index.
     first = {p: p.stat().st_mtime_ns for p in
              outcomes.sidecar_dir(data_dir, "webcam_clipart", TINY, webcam.version).rglob("*.npz")}

@@ -85,3 +85,41 @@ def test_point_score_depends_on_the_query_time_and_sun(scorer_and_obs):
     blind = ConditionalScorer(scorer.net, scorer.params, place=None)
     c = blind.point_scores(codes, capture, obs_point, 2, morning)
     assert np.all(np.abs(a - c) > 1e-6)
+
+
+def test_each_query_its_own_look_many_targets_at_once(tmp_path):
+    """A model reading the appearance: every query's own image changes its scores, and the
+    many-target path equals one target at a time."""
+    import cv2
+
+    from rp_jax.mapsum.conditional_scores import image_conditions, stack_conditions
+
+    net = ConditionalPredictor(conditions=("sun", "weather", "appearance"),
+                               encoder_channels=(4,), encoder_features=8, hidden=8)
+    params = init_params(net, jax.random.key(2))
+    rng = np.random.default_rng(1)
+    scorer = ConditionalScorer(net, params, place=PITTSBURGH, batch_size=2)
+    n = 3
+    when = dt.datetime(2011, 3, 4, 11, 0, tzinfo=TZ)
+    capture = scorer.moments([when] * n)
+    codes = scorer.encode(rng.integers(0, 256, (n, 64, 64, 3), dtype=np.uint8),
+                          rng.uniform(size=(n, 2)).astype(np.float32), capture)
+    bright = rng.integers(100, 256, (48, 64, 3), dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "bright.png"), bright)
+    cv2.imwrite(str(tmp_path / "dark.png"), bright // 8)
+    records = [image_conditions(tmp_path / f"{k}.png", when) for k in ("bright", "dark")]
+    assert records[0][0] is None  # not an image of a synthetic world: weather unknown
+    assert records[0][1]["appearance_log_luma"] > records[1][1]["appearance_log_luma"]
+    weather, look = stack_conditions(records)
+    assert (weather["weather"] == -1).all() and np.isnan(weather["cloud_cover"]).all()
+    targets = scorer.moments([when, when], weather, look)
+    many = scorer.probabilities_at(codes, capture, targets, chunk=1)
+    assert many.shape == (n, 2)
+    assert np.all(np.abs(many[:, 0] - many[:, 1]) > 1e-7)  # the look is read
+    for k in range(2):
+        one = scorer.probabilities(codes, capture, when, weather={
+            key: v[k] for key, v in weather.items()})
+        assert not np.allclose(one, many[:, k])  # without the look: another score
+        single = {key: v[k:k + 1] for key, v in targets.items()}
+        np.testing.assert_allclose(scorer.probabilities_at(codes, capture, single)[:, 0],
+                                   many[:, k], rtol=1e-5)
