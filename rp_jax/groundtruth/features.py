@@ -87,6 +87,36 @@ def _empty(detector: str) -> Features:
     )
 
 
+def _sift_in_one_pass(det, gray: np.ndarray, max_keypoints: int) -> Features | None:
+    """SIFT's strongest ``max_keypoints``, detected and described on one scale space.
+
+    ``detect`` then ``compute`` (the general path below) builds SIFT's Gaussian pyramid
+    twice; ``detectAndCompute`` builds it once and describes every detected point (about as
+    many as are kept on the synthetic worlds: median 1,020 for a cap of 1,000), 22 % less
+    CPU per image. The descriptors are the same numbers: OpenCV's ``compute`` builds its
+    pyramid from the lowest octave of the points it is given, which is octave -1 (the
+    doubled image, as in detection) whenever one kept point lies there; otherwise this
+    returns None and the caller takes the general path. Checked equal, point for point, on
+    every image of the synthetic Webcam world (tests/groundtruth/test_features.py on
+    rendered images).
+    """
+    keypoints, desc = det.detectAndCompute(gray, None)
+    if not keypoints or desc is None:
+        return None
+    response = np.array([k.response for k in keypoints], np.float32)
+    order = np.argsort(-response, kind="stable")[:max_keypoints]
+    # OpenCV packs the octave in the low byte of KeyPoint.octave; 255 is octave -1.
+    if not any(keypoints[i].octave & 255 == 255 for i in order):
+        return None
+    return Features(
+        xy=np.array([keypoints[i].pt for i in order], np.float32).reshape(-1, 2),
+        response=response[order],
+        size=np.array([keypoints[i].size for i in order], np.float32),
+        angle=np.array([keypoints[i].angle for i in order], np.float32),
+        descriptor=np.ascontiguousarray(np.asarray(desc)[order], dtype=np.float32),
+    )
+
+
 def detect_and_describe(
     image: np.ndarray, *, detector: str = "sift", max_keypoints: int = 1000
 ) -> Features:
@@ -109,6 +139,10 @@ def detect_and_describe(
     if gray.dtype != np.uint8:
         raise ValueError(f"expected a uint8 image, got {gray.dtype}")
     det = _make_detector(detector, max_keypoints)
+    if detector == "sift":
+        once = _sift_in_one_pass(det, gray, max_keypoints)
+        if once is not None:
+            return once
     keypoints = det.detect(gray, None)
     if not keypoints:
         return _empty(detector)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from rp_jax.groundtruth import blas_threads, exact_pairs
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.groundtruth.matching import match_all_pairs, match_pair_reference, prepare_descriptors
 from tests.groundtruth._scenes import shifted, textured_image
@@ -210,3 +211,35 @@ def test_auto_takes_bf16_on_an_accelerator_only(monkeypatch, sift_viewpoint):
         match_all_pairs(sift_viewpoint[:2])
     floats = [np.random.default_rng(0).random((9, 8), dtype=np.float32) for _ in range(2)]
     match_all_pairs(floats)  # not exact in bf16: float32 even on an accelerator
+
+
+# --- The per-pair path of exact descriptors (exact_pairs) and OpenBLAS's threads. ------------
+
+
+def test_integer_descriptors_with_empty_and_single_point_images():
+    # Integer-valued (the per-pair path) with images of 0 and 1 points: no ratio test there.
+    rng = np.random.default_rng(2)
+    raw = [rng.integers(0, 6, (n, 8)).astype(np.float32) for n in (30, 1, 0, 41, 2)]
+    _assert_equal_to_reference(raw, "l2")
+
+
+def test_column_top2_equals_row_top2_of_the_transpose_with_ties():
+    rng = np.random.default_rng(3)
+    d = rng.integers(0, 4, (37, 3 * exact_pairs.STRIP_COLUMNS + 5)).astype(np.float32)
+    want = exact_pairs.top2_rows(np.ascontiguousarray(d.T))
+    got = exact_pairs.top2_columns(d.copy())
+    for w, g in zip(want, got):
+        np.testing.assert_array_equal(g, w)
+    assert (want[1] == want[2]).any()  # ties present: the lowest index must have won
+
+
+def test_blas_thread_limit_is_restored():
+    before = blas_threads.threads()
+    if before is None:
+        pytest.skip("NumPy here does not use OpenBLAS")
+    with blas_threads.limit(1):
+        assert blas_threads.threads() == 1
+        with blas_threads.limit(1):
+            pass
+        assert blas_threads.threads() == 1  # an inner block does not restore early
+    assert blas_threads.threads() == before
