@@ -248,7 +248,8 @@ def label_viewpoint(
         default: ``capture.camera.K`` (refused for a camera with distortion).
       load_category: optional ``capture -> uint8 [H, W]`` category map (255 = unlabelled).
       progress: show tqdm bars over images and matching.
-      matching_threads: threads for descriptor matching (does not change the result).
+      matching_threads: threads for detection (images in parallel) and descriptor matching
+        (does not change the result).
       with_patches: cut the ``patch`` column from the images (one more read of each);
         False leaves it out, e.g. to select records first and then ``attach_patches``.
 
@@ -342,19 +343,18 @@ def _label(
             if outcomes is not None:
                 return records, outcomes
 
-    feats, readable = [], []
-    for c in tqdm(captures, desc=f"features {viewpoint}", disable=not progress, leave=False):
-        f = image_features(
-            c,
-            load_image=load_image,
-            config=config,
-            cache_dir=cache_dir,
+    def features_of(c: Capture) -> dict[str, np.ndarray] | None:
+        return image_features(
+            c, load_image=load_image, config=config, cache_dir=cache_dir,
             load_category=load_category,
         )
-        if f is None:
-            continue
-        feats.append(f)
-        readable.append(c)
+
+    # Images in parallel threads too (OpenCV releases the GIL; each image is its own job).
+    with cf.ThreadPoolExecutor(max(1, matching_threads)) as pool:
+        found = list(tqdm(pool.map(features_of, captures), total=len(captures),
+                          desc=f"features {viewpoint}", disable=not progress, leave=False))
+    feats = [f for f in found if f is not None]
+    readable = [c for c, f in zip(captures, found) if f is not None]
     num_unreadable = len(captures) - len(readable)
     if num_unreadable:
         logger.warning(
@@ -557,8 +557,10 @@ def label_viewpoints(
                 yield _label_one(vp, list(caps), kwargs, select, with_patches)
                 bar.update(1)
             return
-        # Cores are shared by the processes: one matching thread each.
-        kwargs["matching_threads"] = 1
+        # Cores are shared by the processes: one thread each, except for the last
+        # workers - 1 viewpoints, which mostly run while other workers have nothing left to
+        # do (7 viewpoints on 2 workers: the 7th ran alone on one of 2 cores).
+        last = len(viewpoints) - (workers - 1)
         # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
         # running already, and forking a multithreaded process can deadlock.
         spawn = mp.get_context("spawn")
@@ -566,8 +568,10 @@ def label_viewpoints(
         with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn,
                                     initializer=worker_processes.exit_with_parent) as pool:
             futures = {
-                pool.submit(_label_one, vp, list(caps), kwargs, select, with_patches): vp
-                for vp, caps in viewpoints.items()
+                pool.submit(_label_one, vp, list(caps),
+                            {**kwargs, "matching_threads": workers if k >= last else 1},
+                            select, with_patches): vp
+                for k, (vp, caps) in enumerate(viewpoints.items())
             }
             for fut in cf.as_completed(futures):
                 yield fut.result()

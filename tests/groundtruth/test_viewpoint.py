@@ -211,6 +211,16 @@ def test_parallel_viewpoints_equal_serial(tmp_path):
         assert (serial[vp]["viewpoint"] == vp).all()
 
 
+def test_records_do_not_depend_on_the_thread_count():
+    # Detection (images in parallel) and matching (image pairs in parallel) on 1 or 3 threads.
+    caps = _static_viewpoint("vpT", seed=8)
+    kw = {"load_image": _scenes.load_from_registry, "num_timestamps": T, "config": STATIC}
+    one = label_viewpoint(caps, matching_threads=1, **kw)
+    three = label_viewpoint(caps, matching_threads=3, **kw)
+    _assert_records_equal(one, three)
+    assert one["label"].max() > 0  # some points repeat: the comparison is not of empty labels
+
+
 def test_categories_are_read_at_keypoints(tmp_path):
     caps = _static_viewpoint("vpcat", seed=7)[:2]
     cat_map = np.full((_scenes.HEIGHT, _scenes.WIDTH), 255, np.uint8)
