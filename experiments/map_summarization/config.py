@@ -59,9 +59,10 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     # ``rp_conditional`` / ``rp_conditional_kcover`` (issue 17; opt-in through
     # ``candidates``): the conditional predictor (``rp_jax.conditional``) trained on the
     # per-pair outcomes of the CMU training slices (the ``cmu`` RP's records), scoring each
-    # point at the query's time and conditions. Weather: the CMU world records none, so
-    # it is unknown in training and at the query; the sun comes from the time and
-    # ``data_specs/cmu_seasons.json``'s location.
+    # point at the query's time and conditions: the sun from the time and
+    # ``data_specs/cmu_seasons.json``'s location; ``weather`` where the world records it
+    # (the synthetic one does; a real user's station record); ``appearance`` read from the
+    # query image itself (each query then gets its own summary). Default: the sun only.
     m.conditional_conditions = "sun"  # comma list of rp_jax.conditional.inputs.CONDITIONS
     m.conditional_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
     m.conditional_hidden = 128  # width of its point code and pair layers
@@ -135,7 +136,8 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
 
         parse_conditions(m.conditional_conditions)
     except ValueError as e:
-        expect(False, "conditional_conditions", f"a comma list of sun, weather, semantics ({e})")
+        expect(False, "conditional_conditions",
+               f"a comma list of sun, weather, semantics, appearance ({e})")
     expect(len(m.seeds) > 0 and all(isinstance(s, int) and s >= 0 for s in m.seeds), "seeds",
            "one or more non-negative integers, e.g. (0, 1, 2)")
     expect(m.synthetic_size in ("tiny", "small", "full"), "synthetic_size",

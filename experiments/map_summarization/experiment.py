@@ -86,7 +86,12 @@ from rp_jax.mapsum import (
     read_model,
     write_summary_model,
 )
-from rp_jax.mapsum.conditional_scores import observation_codes
+from rp_jax.mapsum.conditional_scores import (
+    image_conditions,
+    mean_over_observations,
+    observation_codes,
+    stack_conditions,
+)
 from rp_jax.mapsum.observations import describe_observations, point_categories, query_scores
 from rp_jax.mapsum.oracles import agnostic_counts, redetection_counts, with_track_tiebreak
 from rp_jax.mapsum.statistics import (
@@ -341,20 +346,40 @@ def evaluate_world(
         for k in point_rep
         for b in buckets
     }
+    per_query = False  # the conditional scores of each query, not of its bucket
+    query_conditions = None
     if "conditional" in predictors:
-        # Each observation encoded once; each bucket's query time (and the sun then) scores
-        # it; a point's score is the mean over its observations. The query's weather is
-        # unknown: the CMU world records none (nor do the outcomes the model learnt from).
+        # Each observation encoded once; each bucket's query time (the sun then, and the
+        # weather of that day where its world records it) scores it; a point's score is the
+        # mean over its observations. A model that reads the appearance scores every query
+        # at its own time and with its own image's look: each query gets its own summary.
         tic = time.perf_counter()
         scorer = predictors["conditional"]
         codes, capture = observation_codes(
             scorer, rec, mp, root / f"slice{m.slice}" / "database", obs.category,
             progress=progress,
         )
-        for b in buckets:
-            scores_at[("conditional", b)] = scorer.point_scores(
-                codes, capture, mp.obs_point, mp.num_points, b
-            )
+        records = [image_conditions(q["image_path"], q["time"]) for q in queries]
+        query_conditions = {
+            "conditions": list(scorer.net.conditions),
+            "weather_known": sum(r[0] is not None for r in records),
+            "appearance_known": sum(bool(np.isfinite(list(r[1].values())).all())
+                                    for r in records),
+            "queries": len(records),
+        }
+        per_query = "appearance" in scorer.net.conditions
+        if per_query:
+            targets = scorer.moments([q["time"] for q in queries], *stack_conditions(records))
+            probs = scorer.probabilities_at(codes, capture, targets)
+            for b, rows in buckets.items():
+                for i in rows:
+                    scores_at[("conditional", (b, i))] = mean_over_observations(
+                        probs[:, i], mp.obs_point, mp.num_points)
+        else:
+            for b, rows in buckets.items():
+                scores_at[("conditional", b)] = scorer.point_scores(
+                    codes, capture, mp.obs_point, mp.num_points, b, records[rows[0]][0]
+                )
         timings["conditional_scores_s"] = time.perf_counter() - tic
     track = mp.track_length.astype(np.float64)
     # Scores that do not depend on the query's hour: once per world, or once per date.
@@ -372,11 +397,17 @@ def evaluate_world(
         {("oracle_date", d): with_track_tiebreak(redetected[d], mp) for d in query_dates}
     )
 
-    def score(method: str, b: dt.datetime) -> np.ndarray | None:
-        """Query-time ranking score of a score-based method (None: a set method)."""
+    def own_summary(method: str) -> bool:
+        """Whether each query of a bucket gets its own summary (its own conditions)."""
+        recipe = recipe_of(method, config)
+        return per_query and recipe is not None and recipe[0] == "conditional"
+
+    def score(method: str, b: dt.datetime, i: int | None = None) -> np.ndarray | None:
+        """Query-time ranking score of a score-based method (None: a set method); ``i``
+        the query, for a method whose summary is the query's own."""
         recipe = recipe_of(method, config)
         if recipe is not None:
-            return scores_at[(recipe[0], b)]
+            return scores_at[(recipe[0], (b, i) if own_summary(method) else b)]
         if method == "most_observed":
             return track
         if method == "random":
@@ -385,18 +416,18 @@ def evaluate_world(
 
     kcover_kwargs = {"K": m.kcover_K} if m.kcover_K > 0 else {}
 
-    def summary(method: str, ratio: float, b: dt.datetime) -> np.ndarray:
+    def summary(method: str, ratio: float, b: dt.datetime, i: int | None = None) -> np.ndarray:
         if method == "kcover":
             return kcover_keep(mp, ratio, parts, **kcover_kwargs)
         recipe = recipe_of(method, config)
         if recipe is not None and recipe[1] == "kcover":
-            w = np.clip(np.nan_to_num(score(method, b)), MIN_RP_WEIGHT, 1.0)
+            w = np.clip(np.nan_to_num(score(method, b, i)), MIN_RP_WEIGHT, 1.0)
             return kcover_keep(mp, ratio, parts, weights=w, **kcover_kwargs)
         if method == "random":
             return random_keep(mp, ratio, parts, seed=m.random_seed)
         if method == "most_observed":
             return most_observed_keep(mp, ratio, parts)
-        return prune_by_score(score(method, b), parts, ratio)
+        return prune_by_score(score(method, b, i), parts, ratio)
 
     time_dependent = {k for k in methods if recipe_of(k, config) is not None} | set(ORACLES)
     ratios = [float(r) for r in m.ratios]
@@ -424,19 +455,22 @@ def evaluate_world(
             est: dict[str, tuple | None] = {}
             res: list = [None] * len(queries)
             covs, kept = [], []
-            for b, rows in buckets.items():
-                keep = shared if shared is not None else summary(method, ratio, b)
-                if shared is None or not covs:
-                    covs.append(image_coverage(mp, keep))
-                    kept.append(int(keep.sum()))
-                lmap = LocalizationMap(mp, point_desc, index, keep)
-                for i in rows:
-                    r = localize(queries[i]["query"], lmap, **loc_kwargs)
-                    e = (r.pose.R, r.pose.t) if r.success else None
-                    est[queries[i]["query"].name] = e
-                    res[i] = success(queries[i]["pose"], e)
-                if method == "rp" and abs(ratio - 0.5) < 1e-9 and b == next(iter(buckets)):
-                    write_summary_model(rec, mp, keep, out_dir / "summaries" / f"rp_{key}")
+            for b, bucket_rows in buckets.items():
+                units = ([(i, [i]) for i in bucket_rows] if own_summary(method)
+                         else [(None, bucket_rows)])
+                for unit, rows in units:
+                    keep = shared if shared is not None else summary(method, ratio, b, unit)
+                    if shared is None or not covs:
+                        covs.append(image_coverage(mp, keep))
+                        kept.append(int(keep.sum()))
+                    lmap = LocalizationMap(mp, point_desc, index, keep)
+                    for i in rows:
+                        r = localize(queries[i]["query"], lmap, **loc_kwargs)
+                        e = (r.pose.R, r.pose.t) if r.success else None
+                        est[queries[i]["query"].name] = e
+                        res[i] = success(queries[i]["pose"], e)
+                    if method == "rp" and abs(ratio - 0.5) < 1e-9 and b == next(iter(buckets)):
+                        write_summary_model(rec, mp, keep, out_dir / "summaries" / f"rp_{key}")
             outcomes[method][key] = res
             coverage[method][key] = [
                 min(c[0] for c in covs),
@@ -458,7 +492,8 @@ def evaluate_world(
     labels: list[np.ndarray] = []
     pair_date: list[np.ndarray] = []
     for b, rows in buckets.items():
-        per_method = {k: (score(k, b) if k != "kcover" else kcover_kept) for k in methods}
+        per_method = {k: (score(k, b) if k != "kcover" else kcover_kept) for k in methods
+                      if not own_summary(k)}
         for i in rows:
             r = full_results[i]
             if not r.success:
@@ -468,7 +503,7 @@ def evaluate_world(
             labels.append(lab)
             pair_date.append(np.full(len(cand), queries[i]["date"].toordinal()))
             for k in methods:
-                pairs[k].append(per_method[k][cand])
+                pairs[k].append((score(k, b, i) if own_summary(k) else per_method[k])[cand])
     if labels:
         lab = np.concatenate(labels)
         pdate = np.concatenate(pair_date)
@@ -492,6 +527,8 @@ def evaluate_world(
             "posed": [q["pose"] is not None for q in queries],
         },
         "full_map": full_outcomes,
+        "query_conditions": query_conditions,
+        "conditional_summary_per_query": per_query,
         "outcomes": outcomes,
         "coverage": coverage,
         "kept_points": kept_count,
@@ -605,6 +642,7 @@ def run(
         if "cmu" in training
         else None,
         "conditional_training": training.get("conditional"),
+        "query_conditions": {str(s["seed"]): s.get("query_conditions") for s in per_seed},
         "slice": int(m.slice),
         "dataset": {
             "rp": f"robotcar/{config.input.data_config}",

@@ -36,7 +36,8 @@ def load_queries(
     progress: bool,
     reference: set[str] = frozenset(),
 ) -> list[dict]:
-    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, size.
+    """Each query of ``dates`` (None: all): QueryImage, pose (or None), time, date, its
+    file (``image_path``: what a conditional model reads of the query itself), size.
 
     A slice without query images (a synthetic training slice) gives its held-out
     traversals instead (``held_out_traversals``).
@@ -72,6 +73,7 @@ def load_queries(
                 "pose": None if c.R is None else (np.asarray(c.R), np.asarray(c.t)),
                 "time": c.time,
                 "date": c.time.date(),
+                "image_path": c.image_path,
                 "size": (int(cam.width), int(cam.height)),
             }
         )

@@ -65,6 +65,35 @@ def paired_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) ->
     return lines
 
 
+def paired_rp_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) -> list[str]:
+    """Each candidate recipe paired with ``rp``: +only it / -only rp, exact McNemar p."""
+    versus = metrics.get("paired_vs_rp") or {}
+    ratios = metrics["ratios"]
+    lines = _head("method vs rp", _pct(ratios))
+    for method, per_ratio in versus.items():
+        cells = []
+        for r in ratios:
+            pr = per_ratio[r][threshold]
+            cells.append(f"+{pr['only_method']} / -{pr['only_rp']} (p {_p(pr['p'])})")
+        lines.append(f"| {labels.get(method, method)} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def findings_vs_rp(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
+    """Where each candidate recipe localizes significantly more (or fewer) queries than rp."""
+    out = []
+    for method, per_ratio in (metrics.get("paired_vs_rp") or {}).items():
+        for th in ("0.5m_5deg", "5m_10deg"):
+            more = [r for r, v in per_ratio.items()
+                    if v[th]["only_method"] > v[th]["only_rp"] and v[th]["p"] < ALPHA]
+            fewer = [r for r, v in per_ratio.items()
+                     if v[th]["only_method"] < v[th]["only_rp"] and v[th]["p"] < ALPHA]
+            out.append(f"- At {th}: {labels.get(method, method)} localizes significantly more "
+                       f"queries than rp at {', '.join(more) or 'no ratio'}, fewer at "
+                       f"{', '.join(fewer) or 'none'} (exact McNemar, p < {ALPHA}).")
+    return out
+
+
 def findings(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
     """Sentences computed from the figures: who beats K-cover where, and the oracle gap."""
     out = []
@@ -105,6 +134,7 @@ def findings(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
             + "; ".join(cells)
             + "."
         )
+    out += findings_vs_rp(metrics, labels)
     auc = metrics["inlier_auc"]
     out.append(
         "- Inlier AUC (ranking the full map's PnP inliers among the retrieved images' points; "
@@ -113,6 +143,27 @@ def findings(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
         + "."
     )
     return out
+
+
+def conditional_setup(metrics: Mapping) -> list[str]:
+    """The conditional predictor's training and what its queries knew (empty without it)."""
+    c = metrics.get("conditional_training")
+    if not c:
+        return []
+    known = [v for v in (metrics.get("query_conditions") or {}).values() if v]
+    line = (f"- Conditional RP: conditions {', '.join(c['conditions']) or 'time only'}; "
+            f"{c['train_points']} training points, {c['train_pairs']} known pairs "
+            f"({c['train_pairs_matched']} matched) of {', '.join(c['train_slices'])}; "
+            f"known in training: sun {100 * c['sun_known_share']:.0f} %, weather "
+            f"{100 * c['weather_known_share']:.0f} %")
+    if "appearance_known_share" in c:
+        line += f", appearance {100 * c['appearance_known_share']:.0f} %"
+    line += "."
+    if known:
+        line += (f" At the queries: weather known for {sum(v['weather_known'] for v in known)}"
+                 f", appearance for {sum(v['appearance_known'] for v in known)} of "
+                 f"{sum(v['queries'] for v in known)}.")
+    return [line]
 
 
 def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
@@ -147,6 +198,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         "query's own date.",
         f"- Localization: VLAD retrieval of {m.num_retrieved} images, ratio {m.match_ratio}, "
         f"PnP-RANSAC {m.reprojection_error} px, at least {m.min_inliers} inliers.",
+        *conditional_setup(metrics),
         "",
         "Full map (0 % pruned): "
         + ", ".join(f"{k} {v:.1f} %" for k, v in metrics["full_map_accuracy"].items())
@@ -169,6 +221,14 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
             *paired_table(metrics, labels, th),
             "",
         ]
+        if metrics.get("paired_vs_rp"):
+            lines += [
+                f"Paired with rp at {th} (+queries only the method localizes / -only rp, "
+                "exact McNemar p):",
+                "",
+                *paired_rp_table(metrics, labels, th),
+                "",
+            ]
     cov = metrics["image_coverage"]
     lines += [
         "## Kept points per database image (min / median over images, pooled over seeds)",

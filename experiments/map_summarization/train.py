@@ -207,6 +207,9 @@ def train_conditional_predictor(
         "weather_known_share": float((arrays.tables["weather"] >= 0)[
             arrays.tables["valid"]].mean()),
     }
+    if "appearance" in net.conditions:  # a field only where read: older fits stay reusable
+        counts["appearance_known_share"] = float(np.isfinite(
+            arrays.tables["appearance_log_luma"])[arrays.tables["valid"]].mean())
     asked = {"settings": dataclasses.asdict(settings), "network": repr(net), **counts}
     asked = json.loads(json.dumps(asked, default=str))
     fit_json, params_file = workdir / "fit.json", workdir / "params.msgpack"

@@ -351,3 +351,47 @@ def test_rp_conditional_recipe_end_to_end_on_the_tiny_world(tiny_run, tmp_path):
         assert kept[method]["0.5"] == kept["kcover"]["0.5"] * len(kept[method]["0.5"])
     assert out["auc"]["rp_conditional"]["all"] is not None
     assert "conditional_scores_s" in out["timings"]
+
+
+def test_rp_conditional_with_the_query_images_own_conditions(tiny_run, tmp_path):
+    """A model that reads the weather and the appearance: the synthetic world's weather
+    record and each query image's look are given, and each query gets its own summary."""
+    import jax
+
+    from experiments.map_summarization.train import conditional_network
+    from rp_jax import predict
+    from rp_jax.conditional.model import init_params
+    from rp_jax.mapsum.conditional_scores import ConditionalScorer
+
+    workdir, metrics, argv = tiny_run
+    config, _ = parse([*argv, "--config.map.ratios=(0.5,)", "--config.map.rp_method=rp_kcover",
+                       "--config.map.candidates=('rp_conditional_kcover',)",
+                       "--config.map.conditional_conditions=sun,weather,appearance"])
+    net = conditional_network(config)
+    assert net.conditions == ("sun", "weather", "appearance")
+    scorer = ConditionalScorer(net, init_params(net, jax.random.key(0)), place=(40.44, -79.99))
+    predictors = {"robotcar": predict.load(workdir / "rp"), "conditional": scorer}
+    out = mexp.evaluate_world(config, 0, predictors, tmp_path / "seed0", fingerprint="t",
+                              progress=False)
+    n = metrics["queries"] + metrics["queries_without_pose"]
+    assert out["conditional_summary_per_query"] is True
+    assert out["query_conditions"] == {"conditions": ["sun", "weather", "appearance"],
+                                       "weather_known": n, "appearance_known": n, "queries": n}
+    kept = out["kept_points"]["rp_conditional_kcover"]["0.5"]
+    assert len(kept) == n and set(kept) == set(out["kept_points"]["kcover"]["0.5"])
+    assert out["auc"]["rp_conditional_kcover"]["all"] is not None
+
+
+def test_report_pairs_each_candidate_with_rp():
+    from experiments.map_summarization import report
+
+    cell = {"only_method": 7, "only_rp": 1, "p": 0.0703}
+    metrics = {"ratios": ["0.5", "0.9"], "paired_vs_rp": {"rp_conditional_kcover": {
+        "0.5": {"5m_10deg": cell, "0.5m_5deg": cell},
+        "0.9": {"5m_10deg": {"only_method": 20, "only_rp": 3, "p": 2e-4},
+                "0.5m_5deg": {"only_method": 1, "only_rp": 15, "p": 1e-3}}}}}
+    table = report.paired_rp_table(metrics, {"rp_conditional_kcover": "cond"}, "5m_10deg")
+    assert table[2] == "| cond | +7 / -1 (p 0.0703) | +20 / -3 (p 2.0e-04) |"
+    said = report.findings_vs_rp(metrics, {"rp_conditional_kcover": "cond"})
+    assert "more queries than rp at no ratio, fewer at 0.9" in said[0]  # 0.5m_5deg
+    assert "more queries than rp at 0.9, fewer at none" in said[1]  # 5m_10deg
