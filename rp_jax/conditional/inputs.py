@@ -11,7 +11,14 @@ A *moment* is a dict of arrays of one shape ``S`` (a batch, or a batch by target
   with the ``weather`` condition;
 * ``APPEARANCE_KEYS`` (``rp_jax.conditional.appearance``: a global descriptor of the image
   itself, NaN unknown), read only with the ``appearance`` condition: what a localization
-  query knows of its own conditions without any record (issue 17).
+  query knows of its own conditions without any record (issue 17);
+* ``SUN_CAMERA_KEYS``: the sun as the camera sees it (``rp_jax.sun.sun_in_camera_frame``:
+  elevation above the optical axis, azimuth right of it; NaN where the camera's geo-aligned
+  orientation is unknown, ``rp_jax.datasets.camera_frame``), read only with the
+  ``sun_camera`` condition: which side of a facade is lit depends on the sun relative to the
+  view, which the compass direction alone cannot tell a model that sees north- and
+  south-facing streets (Sec. V; issue 17, "in the camera frame where the pose or heading is
+  known").
 
 The time is encoded continuously: the angle of the time of day as sin/cos of its first
 ``harmonics`` multiples, the day of the year as one sin/cos pair (``rp_jax.time_encoding``'s
@@ -36,6 +43,7 @@ __all__ = [
     "CONDITIONS",
     "DECAY_TIME_SCALES_YEARS",
     "MOMENT_KEYS",
+    "SUN_CAMERA_KEYS",
     "SUN_KEYS",
     "WEATHER_KEYS",
     "YEAR_KEY",
@@ -50,9 +58,11 @@ __all__ = [
     "years_between",
 ]
 
-CONDITIONS = ("sun", "weather", "semantics", "appearance")
+CONDITIONS = ("sun", "weather", "semantics", "appearance", "sun_camera")
 TIME_KEYS = ("hour", "minute", "day", "month")
 SUN_KEYS = ("sun_elevation_deg", "sun_azimuth_deg")
+# Optional like APPEARANCE_KEYS (a learnable task's tables need not hold them).
+SUN_CAMERA_KEYS = ("sun_camera_elevation_deg", "sun_camera_azimuth_deg")
 WEATHER_KEYS = ("cloud_cover", "precipitation", "snow_cover", "weather")
 MOMENT_KEYS = TIME_KEYS + SUN_KEYS + WEATHER_KEYS
 YEAR_KEY = "year"  # optional; read only by the decay basis
@@ -70,7 +80,8 @@ _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype
 
 def moment_at(times, *, place: tuple[float, float] | None = None,
               weather: dict | None = None, with_year: bool = False,
-              appearance: dict | None = None) -> dict[str, np.ndarray]:
+              appearance: dict | None = None,
+              camera_rotation: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The moment of timezone-aware datetimes (any instants): a query's target or capture.
 
     Args:
@@ -82,10 +93,13 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
       with_year: also ``YEAR_KEY`` (what a model with a decay basis reads).
       appearance: arrays or scalars of ``APPEARANCE_KEYS`` (``appearance.describe`` of the
         image taken then); None leaves it unknown (NaN).
+      camera_rotation: [3, 3] geo-aligned world-to-camera rotation of the camera
+        (``rp_jax.datasets.camera_frame``): with ``place``, the sun in its frame
+        (``SUN_CAMERA_KEYS``); None leaves that unknown (NaN).
 
     Returns:
-      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32) and ``APPEARANCE_KEYS``
-      [and ``year``].
+      float32 arrays [n] of ``MOMENT_KEYS`` (``weather`` int32), ``APPEARANCE_KEYS`` and
+      ``SUN_CAMERA_KEYS`` [and ``year``].
     """
     from rp_jax import sun as sunlib
 
@@ -101,6 +115,12 @@ def moment_at(times, *, place: tuple[float, float] | None = None,
             np.array([sunlib.unix_seconds(t) for t in times]), *place)
         out["sun_elevation_deg"] = elevation.astype(np.float32)
         out["sun_azimuth_deg"] = azimuth.astype(np.float32)
+    out.update({k: np.full(n, np.nan, np.float32) for k in SUN_CAMERA_KEYS})
+    if place is not None and camera_rotation is not None and n:
+        cam_el, cam_az = sunlib.sun_in_camera_frame(out["sun_elevation_deg"],
+                                                    out["sun_azimuth_deg"], camera_rotation)
+        out["sun_camera_elevation_deg"] = cam_el.astype(np.float32)
+        out["sun_camera_azimuth_deg"] = cam_az.astype(np.float32)
     for key, value in (weather or {}).items():
         if key not in WEATHER_KEYS:
             raise ValueError(f"unknown weather field {key!r}; expected {WEATHER_KEYS}")
@@ -198,6 +218,21 @@ def _sun_vector(moment) -> tuple[jnp.ndarray, jnp.ndarray]:
     return vec * known[..., None], known
 
 
+def _sun_camera_vector(moment) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """Unit vector towards the sun in the camera's axes (right, up, forward) * known, and
+    the known flag."""
+    missing = [k for k in SUN_CAMERA_KEYS if k not in moment]
+    if missing:
+        raise ValueError(f"the sun_camera condition reads the moments' {missing}; give them "
+                         "(moment_at(..., camera_rotation=...), NaN for unknown)")
+    el, known_el = _known(moment["sun_camera_elevation_deg"])
+    az, known_az = _known(moment["sun_camera_azimuth_deg"])
+    known = known_el * known_az
+    el, az = jnp.radians(el), jnp.radians(az)
+    vec = jnp.stack([jnp.cos(el) * jnp.sin(az), jnp.sin(el), jnp.cos(el) * jnp.cos(az)], -1)
+    return vec * known[..., None], known
+
+
 def _weather(moment) -> list[jnp.ndarray]:
     out = []
     for key in WEATHER_KEYS[:-1]:
@@ -232,6 +267,9 @@ def capture_features(moment, conditions: tuple[str, ...], harmonics: int = 2) ->
         parts += _weather(moment)
     if "appearance" in conditions:
         parts += _appearance(moment)
+    if "sun_camera" in conditions:
+        vec, known = _sun_camera_vector(moment)
+        parts += [vec[..., i] for i in range(3)] + [known]
     return jnp.stack(parts, axis=-1)
 
 
@@ -258,6 +296,12 @@ def target_features(capture, target, conditions: tuple[str, ...],
         parts += _weather(target)
     if "appearance" in conditions:
         parts += _appearance(target)
+    if "sun_camera" in conditions:
+        vec, known = _sun_camera_vector(target)
+        cap_vec, cap_known = _sun_camera_vector(capture)
+        agreement = jnp.sum(vec * cap_vec[..., None, :], axis=-1)
+        parts += [vec[..., i] for i in range(3)] + [known, agreement,
+                                                    known * cap_known[..., None]]
     return jnp.stack(parts, axis=-1)
 
 

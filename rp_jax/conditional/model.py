@@ -119,7 +119,8 @@ class ConditionalPredictor(nn.Module):
 
 
 def _zeros_moment(shape, with_year: bool = False) -> dict:
-    keys = inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + ((inputs.YEAR_KEY,) if with_year else ())
+    keys = (inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + inputs.SUN_CAMERA_KEYS
+            + ((inputs.YEAR_KEY,) if with_year else ()))
     return {k: jnp.zeros(shape) for k in keys}
 
 

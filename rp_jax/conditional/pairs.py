@@ -92,8 +92,9 @@ def batch(arrays: PairArrays, index: np.ndarray, size: int | None = None) -> dic
     num_targets = t["slot"].shape[1]
     out = {k: p[k][index] for k in ("patch", "xy_normalized", "category", "outcome")}
     out["mask"] = np.arange(size) < n
-    keys = inputs.MOMENT_KEYS + tuple(k for k in inputs.APPEARANCE_KEYS + (inputs.YEAR_KEY,)
-                                      if k in t)
+    keys = inputs.MOMENT_KEYS + tuple(
+        k for k in inputs.APPEARANCE_KEYS + inputs.SUN_CAMERA_KEYS + (inputs.YEAR_KEY,)
+        if k in t)
     out["capture"] = {k: p[f"capture_{k}"][index] for k in keys}
     out["target"] = {k: t[k][table] for k in keys}
     out["target_slot"] = t["slot"][table]
@@ -113,7 +114,7 @@ def _table_moment(side: Mapping[str, np.ndarray], with_year: bool = False
         out[inputs.YEAR_KEY] = time[:, 0]
     for key in inputs.SUN_KEYS + inputs.WEATHER_KEYS:  # the sidecar's image_<condition>
         out[key] = np.asarray(side[f"image_{key}"])
-    for key in inputs.APPEARANCE_KEYS:  # NaN (unknown) in a sidecar without them
+    for key in inputs.APPEARANCE_KEYS + inputs.SUN_CAMERA_KEYS:  # NaN: a sidecar without them
         out[key] = np.asarray(side.get(f"image_{key}", np.full(len(time), np.nan)))
     return {k: np.asarray(v, np.int32 if k == "weather" else np.float32) for k, v in out.items()}
 
@@ -133,8 +134,8 @@ def from_records(columns: Mapping[str, np.ndarray],
     viewpoints = sorted(sidecar)
     width = max(len(sidecar[v]["image_id"]) for v in viewpoints)
     V = len(viewpoints)
-    keys = inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + ((inputs.YEAR_KEY,) if with_year
-                                                          else ())
+    keys = (inputs.MOMENT_KEYS + inputs.APPEARANCE_KEYS + inputs.SUN_CAMERA_KEYS
+            + ((inputs.YEAR_KEY,) if with_year else ()))
     tables = {k: np.zeros((V, width), np.int32 if k == "weather" else np.float32)
               for k in keys}
     tables["weather"][:] = -1

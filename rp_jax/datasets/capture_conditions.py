@@ -8,8 +8,10 @@ misses. This module says, per capture, what is known of both, from what a user h
   no refraction, as the Webcam Clip Art ``.mat`` files). The place is the capture's
   ``meta["latitude"]``/``["longitude"]`` (Webcam Clip Art's ``scene.json``, RobotCar's
   INS), else ``data_specs/<dataset>.json``'s ``"location": {"latitude", "longitude"}``
-  when the dataset has one; NaN where neither is known. The world frame, not the camera's:
-  a static webcam's frame is fixed per viewpoint, and the datasets' poses are not geo-aligned.
+  when the dataset has one; NaN where neither is known. In the world frame, and also in the
+  camera's (``sun_camera_*``) where the camera's geo-aligned orientation is known
+  (``rp_jax.datasets.camera_frame``: a synthetic world's renderer, a webcam's compass
+  heading); the real datasets' poses are not geo-aligned.
 * **weather** (a small schema a station record or a forecast can fill): ``cloud_cover``
   (0-1), ``precipitation`` (1 rain or snowfall, 0 dry), ``snow_cover`` (snow on the ground,
   0 none to 1 deep: the synthetic world's level / 4) and ``weather`` (an index into
@@ -33,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from rp_jax import sun as sunlib
+from rp_jax.datasets import camera_frame
 from rp_jax.schedule import load_spec
 from rp_jax.sources.capture import Capture
 
@@ -42,8 +45,9 @@ __all__ = ["CONDITION_FIELDS", "WEATHERS", "capture_conditions", "capture_places
 # The weather kinds of the schema (the synthetic world's, which a station record maps onto).
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
 # float32 per capture, NaN unknown (``weather`` is int8, -1 unknown).
-CONDITION_FIELDS = ("sun_elevation_deg", "sun_azimuth_deg", "cloud_cover", "precipitation",
-                    "snow_cover", "weather")
+CONDITION_FIELDS = ("sun_elevation_deg", "sun_azimuth_deg", "sun_camera_elevation_deg",
+                    "sun_camera_azimuth_deg", "cloud_cover", "precipitation", "snow_cover",
+                    "weather")
 
 
 def _finite(value) -> float | None:
@@ -170,7 +174,9 @@ def capture_conditions(captures: Sequence[Capture], dataset: str) -> dict[str, n
       dataset: the dataset they come from (its data spec may give the place).
 
     Returns:
-      float32 [n] arrays ``sun_elevation_deg``, ``sun_azimuth_deg``, ``cloud_cover``,
+      float32 [n] arrays ``sun_elevation_deg``, ``sun_azimuth_deg``, the sun in the camera's
+      frame ``sun_camera_elevation_deg``, ``sun_camera_azimuth_deg`` (where the camera's
+      geo-aligned orientation is known: ``camera_frame``), ``cloud_cover``,
       ``precipitation``, ``snow_cover`` (NaN unknown) and int8 [n] ``weather`` (index into
       ``WEATHERS``, -1 unknown).
     """
@@ -182,6 +188,11 @@ def capture_conditions(captures: Sequence[Capture], dataset: str) -> dict[str, n
         if place is not None:
             elevation, azimuth = sunlib.solar_position(sunlib.unix_seconds(c.time), *place)
             out["sun_elevation_deg"][i], out["sun_azimuth_deg"][i] = elevation, azimuth
+            R = camera_frame.camera_rotation(c.image_path)
+            if R is not None:
+                (out["sun_camera_elevation_deg"][i],
+                 out["sun_camera_azimuth_deg"][i]) = sunlib.sun_in_camera_frame(elevation,
+                                                                                azimuth, R)
         weather = _synthetic_weather(c)
         if weather is not None:
             (out["cloud_cover"][i], out["precipitation"][i], out["snow_cover"][i],

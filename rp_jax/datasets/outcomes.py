@@ -29,7 +29,8 @@ DATA_FORMATS.md.
 viewpoint whose outcomes were not cached is matched again; its features are cached), for
 exactly the records the build kept (the same ``select_records`` choice); a re-run skips
 the viewpoints already written. A sidecar of an older format whose outcomes are still
-those of its images (format 2: no synthetic CMU weather; 3: no appearance) has only
+those of its images (format 2: no synthetic CMU weather; 3: no appearance; 4: no sun in
+the camera's frame) has only
 its per-image fields written again (``image_conditions``), not its outcomes (its index
 keeps the old format until every file is written, so a killed run does it again).
 ``load(...)`` reads it and ``join`` lines it up with the records' columns.
@@ -56,10 +57,10 @@ __all__ = ["FORMAT_VERSION", "build", "image_conditions", "join", "load", "sidec
 log = logging.getLogger(__name__)
 
 # 2: the camera's place and zone; 3: the synthetic CMU world's weather; 4: each image's
-# appearance descriptor.
-FORMAT_VERSION = 4
+# appearance descriptor; 5: the sun in the camera's frame.
+FORMAT_VERSION = 5
 # Older formats whose rows are still valid: only the per-image fields change.
-_REFRESHABLE_FORMATS = (2, 3)
+_REFRESHABLE_FORMATS = (2, 3, 4)
 SIDECAR_ROOT = "rp_jax_outcomes"
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")

@@ -13,6 +13,7 @@ from rp_jax import schedule as schedule_lib
 from rp_jax.conditional import inputs, pairs, sun_task
 from rp_jax.conditional import model as cmodel
 from rp_jax.conditional import train as ctrain
+from rp_jax.datasets import camera_frame
 from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.model import preprocess_patches
 
@@ -30,7 +31,8 @@ def _moment(shape, rng):
                "snow_cover": rng.uniform(0, 1, len(times)),
                "weather": rng.integers(0, 5, len(times))}
     look = {k: rng.uniform(-1, 1, len(times)) for k in inputs.APPEARANCE_KEYS}
-    m = inputs.moment_at(times, place=PLACE, weather=weather, appearance=look)
+    m = inputs.moment_at(times, place=PLACE, weather=weather, appearance=look,
+                         camera_rotation=camera_frame.heading_rotation(200.0, -5.0))
     return {k: v.reshape(shape) for k, v in m.items()}
 
 
@@ -49,9 +51,11 @@ def test_parse_conditions():
     assert inputs.parse_conditions("") == ()
     assert inputs.parse_conditions(" weather, sun") == ("sun", "weather")
     assert inputs.parse_conditions("sun,weather,semantics") == inputs.CONDITIONS[:3]
-    assert inputs.parse_conditions("appearance,sun,weather,semantics") == inputs.CONDITIONS
+    assert inputs.parse_conditions("appearance,sun,weather,semantics") == inputs.CONDITIONS[:4]
+    assert inputs.parse_conditions("sun_camera,appearance,sun,weather,semantics") == (
+        inputs.CONDITIONS)
     with pytest.raises(ValueError, match="unknown conditions.*known: sun, weather, semantics, "
-                                         "appearance"):
+                                         "appearance, sun_camera"):
         inputs.parse_conditions("sun,rain")
 
 
@@ -203,3 +207,22 @@ def test_sun_conditioned_model_learns_what_the_time_only_model_cannot():
     # the training mean 0.16, 0.17, 0.18.
     assert mae[("sun",)] < 0.6 * mae[()]
     assert mae[("sun",)] < 0.5 * constant
+
+
+def test_sun_camera_condition_reads_the_view_not_the_compass():
+    """Two cameras, one looking north and one south, at the same instant: the world-frame
+    sun encodes the same, the camera-frame sun does not; unknown orientation: flag 0."""
+    when = [dt.datetime(2021, 6, 21, 13, 0, tzinfo=ZONE)]
+    north = inputs.moment_at(when, place=PLACE, camera_rotation=camera_frame.heading_rotation(0))
+    south = inputs.moment_at(when, place=PLACE,
+                             camera_rotation=camera_frame.heading_rotation(180))
+    unknown = inputs.moment_at(when, place=PLACE)
+    world = [inputs.capture_features(m, ("sun",)) for m in (north, south)]
+    np.testing.assert_array_equal(world[0], world[1])
+    cam = [inputs.capture_features(m, ("sun_camera",)) for m in (north, south, unknown)]
+    assert float(cam[0][0, -2]) < 0 < float(cam[1][0, -2])  # the midday sun behind / ahead
+    assert float(cam[0][0, -1]) == float(cam[1][0, -1]) == 1.0
+    assert float(cam[2][0, -1]) == 0.0 and not np.any(np.asarray(cam[2][0, -4:-1]))
+    with pytest.raises(ValueError, match="sun_camera condition reads"):
+        inputs.capture_features({k: v for k, v in north.items()
+                                 if k not in inputs.SUN_CAMERA_KEYS}, ("sun_camera",))

@@ -49,3 +49,29 @@ def test_scene_json_heading_gives_a_level_camera(tmp_path):
     (scene / "scene.json").write_text(json.dumps({"latitude": 40.0}))
     camera_frame._scene_heading.cache_clear()
     assert camera_frame.camera_rotation(scene / "a.jpg") is None
+
+
+def test_capture_conditions_give_the_sun_in_the_renderers_camera_frame(tmp_path):
+    """The per-pair sidecar's ``sun_camera_*`` of synthetic frames: the sun the renderer lit
+    them with, as their own camera sees it; NaN without a geo-aligned orientation."""
+    from rp_jax.datasets import capture_conditions
+    from rp_jax.sources import cmu_seasons
+    from rp_jax.sources.capture import Camera, Capture
+
+    jobs = presets.plan("cmu_seasons", tmp_path, size="tiny", seed=2).jobs[::9]
+    camera = Camera("PINHOLE", 4, 3, np.eye(3))
+    captures = [Capture(job.image_path,
+                        cmu_seasons.capture_time(cmu_seasons.parse_image_name(job.image_path.name)[2]),
+                        camera, "v") for job in jobs]
+    unknown = capture_conditions.capture_conditions(captures, "cmu_seasons")  # no marker yet
+    assert np.isnan(unknown["sun_camera_azimuth_deg"]).all()
+    assert np.isfinite(unknown["sun_azimuth_deg"]).all()
+    _mark(tmp_path, "cmu_seasons")
+    camera_frame._planned_rotations.cache_clear()
+    got = capture_conditions.capture_conditions(captures, "cmu_seasons")
+    for i, job in enumerate(jobs):
+        el, az = sun.sun_in_camera_frame(got["sun_elevation_deg"][i], got["sun_azimuth_deg"][i],
+                                         job.R)
+        np.testing.assert_allclose([got["sun_camera_elevation_deg"][i],
+                                    got["sun_camera_azimuth_deg"][i]], [el, az], atol=1e-3)
+    assert np.ptp(got["sun_camera_azimuth_deg"]) > 10  # the cameras look different ways
