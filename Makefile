@@ -1,6 +1,10 @@
 # Set-up and the two commands of the README. Each target creates .venv if missing and
 # installs the project into it (editable, with the test extra); the install is skipped
 # while pyproject.toml is unchanged.
+# The install goes through uv (itself installed from PyPI into .venv), which resolves the
+# same versions as pip (`pip freeze` of both environments: the same 114 packages and
+# versions, 2026-12-02) in about a quarter of the time; pip is the fallback wherever uv
+# cannot be installed or fails. Unlike pip, uv reads no pip.conf: it asks PyPI itself.
 PYTHON ?= python3.11
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -22,8 +26,10 @@ $(PY):
 	$(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
 
 $(INSTALLED): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
+	( $(PY) -m pip install --quiet uv && \
+	  $(PY) -m uv pip install --quiet --python $(PY) --upgrade-package pip pip -e ".[test]" ) || \
+	( echo "uv failed: installing with pip" && $(PY) -m pip install --quiet --upgrade pip && \
+	  $(PY) -m pip install --quiet -e ".[test]" )
 	touch $(INSTALLED)
 
 demo: $(INSTALLED)
