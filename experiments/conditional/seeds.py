@@ -51,8 +51,25 @@ def load(workdirs: list[str | Path]) -> dict[int, dict]:
             raise ValueError(f"{path}: its config differs from {Path(workdirs[0])}'s in more "
                              "than the seed")
         first = rest if first is None else first
+        if "summary" not in result:  # a run still going: its finished folds only
+            result["folds"] = _finished(result["folds"])
+            result["summary"] = _summary_of_finished(result["folds"])
         out[seed] = result
     return out
+
+
+def _finished(folds: dict) -> dict:
+    """The folds of an unfinished run in which every variant it trains has run."""
+    names = set().union(*(f.get("variants", {}) for f in folds.values()))
+    return {n: f for n, f in folds.items() if names and names <= set(f.get("variants", {}))}
+
+
+def _summary_of_finished(folds: dict) -> dict:
+    from experiments.conditional import crossval
+
+    names = sorted(set().union(*(f["variants"] for f in folds.values())))
+    return crossval.summarize(folds, [() if n == "time" else tuple(n.split("+"))
+                                      for n in names])
 
 
 def _score(fold: dict, name: str) -> dict:
@@ -102,6 +119,8 @@ def combine(results: dict[int, dict]) -> dict:
                                          for s in seeds} for n in names},
                  "folds": {s: [f["held_out"] for f in results[s]["folds"].values()]
                            for s in seeds}}
+    most = max(len(f) for f in out["folds"].values())
+    out["unfinished"] = [s for s in seeds if len(out["folds"][s]) < most]
     for reference in REFERENCES:
         if reference not in names:
             continue
@@ -122,7 +141,10 @@ def markdown(combined: dict) -> str:
     """``conditional_seeds.md``: per-seed means, the change against the paper's RP (and the
     time-only variant) per seed, mean ± sample standard deviation, folds and viewpoints lower."""
     seeds = combined["seeds"]
-    head = "| model | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |"
+    most = max(len(f) for f in combined["folds"].values())
+    name = {s: f"seed {s}" + (f" ({len(combined['folds'][s])} of {most} folds)"
+                              if s in combined.get("unfinished", []) else "") for s in seeds}
+    head = "| model | " + " | ".join(name[s] for s in seeds) + " | mean |"
     rule = "|---" * (len(seeds) + 2) + "|"
     lines = ["# Conditional predictor vs the paper's, several seeds", "",
              "Held-out training viewpoints; a seed deals the folds, initialises and orders "
@@ -141,7 +163,7 @@ def markdown(combined: dict) -> str:
         lines += ["", f"Relative MAE change against {_label(reference)} (mean over each seed's "
                   "folds; mean ± sd over the seeds; folds and held-out viewpoints lower, all "
                   "seeds):", "",
-                  "| model | " + " | ".join(f"seed {s}" for s in seeds)
+                  "| model | " + " | ".join(name[s] for s in seeds)
                   + " | mean ± sd | folds lower | viewpoints lower |",
                   "|---" * (len(seeds) + 4) + "|"]
         for n, g in rows.items():

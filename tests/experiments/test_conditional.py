@@ -226,3 +226,22 @@ def test_the_decay_basis_reaches_the_model_from_the_shared_config(capsys, tmp_pa
     monkeypatch.setattr(crossval, "markdown", lambda result: "")
     assert main("--cross-validate", "--config.model.decay_time_scales=1,3") == 0
     assert calls == [(1.0, 3.0)]
+
+
+def test_an_unfinished_seed_counts_its_finished_folds_only(tmp_path):
+    import json
+
+    from experiments.conditional import seeds
+
+    done = _seed_result(0, [0.2, 0.1], [0.18, 0.09], [0.16, 0.095])
+    going = _seed_result(1, [0.2, 0.2], [0.22, 0.18], [0.18, 0.18])
+    del going["summary"]  # written at the end of a run
+    del next(reversed(going["folds"].values()))["variants"]["sun"]  # its last fold half done
+    for seed, result in ((0, done), (1, going)):
+        (tmp_path / str(seed)).mkdir()
+        (tmp_path / str(seed) / "conditional.json").write_text(json.dumps(result))
+    got = seeds.combine(seeds.load([tmp_path / "0", tmp_path / "1"]))
+    assert got["unfinished"] == [1] and len(got["folds"][1]) == 1
+    assert got["vs_paper"]["time"]["per_seed"][1] == pytest.approx(0.1)  # 0.22 / 0.2 - 1
+    assert got["vs_paper"]["time"]["folds"] == 3
+    assert "| seed 1 (1 of 2 folds) |" in seeds.markdown(got)
