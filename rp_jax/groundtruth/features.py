@@ -96,9 +96,10 @@ def _sift_in_one_pass(det, gray: np.ndarray, max_keypoints: int) -> Features | N
     CPU per image. The descriptors are the same numbers: OpenCV's ``compute`` builds its
     pyramid from the lowest octave of the points it is given, which is octave -1 (the
     doubled image, as in detection) whenever one kept point lies there; otherwise this
-    returns None and the caller takes the general path. Checked equal, point for point, on
-    every image of the synthetic Webcam world (tests/groundtruth/test_features.py on
-    rendered images).
+    returns None and the caller takes the general path. Checked equal: every point and
+    descriptor of the 768 images of the synthetic Webcam world (the per-viewpoint label
+    caches of two full builds, before and after, hash equal) and, in
+    ``tests/groundtruth/test_features.py``, against the two calls on textured images.
     """
     keypoints, desc = det.detectAndCompute(gray, None)
     if not keypoints or desc is None:
