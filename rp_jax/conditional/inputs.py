@@ -287,22 +287,23 @@ def target_features(capture, target, conditions: tuple[str, ...],
     parts = _time(target, harmonics)
     parts += _angles(day - cap_day[..., None], harmonics) + _angles(year - cap_year[..., None], 1)
     if "sun" in conditions:
-        vec, known = _sun_vector(target)
-        cap_vec, cap_known = _sun_vector(capture)
-        agreement = jnp.sum(vec * cap_vec[..., None, :], axis=-1)
-        parts += [vec[..., i] for i in range(3)] + [known, agreement,
-                                                    known * cap_known[..., None]]
+        parts += _target_sun(_sun_vector, capture, target)
     if "weather" in conditions:
         parts += _weather(target)
     if "appearance" in conditions:
         parts += _appearance(target)
     if "sun_camera" in conditions:
-        vec, known = _sun_camera_vector(target)
-        cap_vec, cap_known = _sun_camera_vector(capture)
-        agreement = jnp.sum(vec * cap_vec[..., None, :], axis=-1)
-        parts += [vec[..., i] for i in range(3)] + [known, agreement,
-                                                    known * cap_known[..., None]]
+        parts += _target_sun(_sun_camera_vector, capture, target)
     return jnp.stack(parts, axis=-1)
+
+
+def _target_sun(sun_vector, capture, target) -> list[jnp.ndarray]:
+    """A target's sun (``sun_vector``'s unit vector and known flag), the cosine of its angle
+    to the capture's sun and whether both are known."""
+    vec, known = sun_vector(target)
+    cap_vec, cap_known = sun_vector(capture)
+    agreement = jnp.sum(vec * cap_vec[..., None, :], axis=-1)
+    return [vec[..., i] for i in range(3)] + [known, agreement, known * cap_known[..., None]]
 
 
 def _in_years(moment) -> jnp.ndarray:
