@@ -44,12 +44,14 @@ def heading_rotation(heading_deg: float, tilt_deg: float = 0.0) -> np.ndarray:
     return np.stack([right, down, forward])
 
 
-def _world_root(image_path: Path) -> Path | None:
-    """The synthetic layout's root holding the image (webcam: root/scene/img, CMU:
-    root/sliceN/folder/img); None if no parent has a synthetic marker."""
+@functools.lru_cache(maxsize=256)
+def _world_root(image_dir: Path) -> Path | None:
+    """The synthetic layout's root holding the images of ``image_dir`` (webcam:
+    root/scene/img, CMU: root/sliceN/folder/img); None if neither candidate has a synthetic
+    marker. Cached per folder: a viewpoint's images share it, so the markers are read once."""
     from rp_jax.sources.synthetic import output_folder
 
-    for root in list(image_path.parents)[1:3]:
+    for root in (image_dir.parent, image_dir.parent.parent):
         if output_folder.folder_parameters(root):
             return root
     return None
@@ -85,7 +87,7 @@ def _scene_heading(scene_json: Path) -> tuple[float, float] | None:
 def camera_rotation(image_path: str | Path) -> np.ndarray | None:
     """The geo-aligned world-to-camera rotation [3, 3] of one image, or None (unknown)."""
     path = Path(image_path)
-    root = _world_root(path)
+    root = _world_root(path.parent)
     if root is not None:
         rotations = _planned_rotations(root)
         if rotations is not None:

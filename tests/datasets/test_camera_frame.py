@@ -20,6 +20,7 @@ def test_synthetic_frames_get_the_renderers_rotation(tmp_path, preset):
     jobs = presets.plan(preset, tmp_path, size="tiny", seed=2).jobs
     _mark(tmp_path, preset)
     camera_frame._planned_rotations.cache_clear()
+    camera_frame._world_root.cache_clear()
     for job in jobs[:: max(1, len(jobs) // 7)]:
         np.testing.assert_array_equal(camera_frame.camera_rotation(job.image_path), job.R)
     assert camera_frame.camera_rotation(tmp_path / jobs[0].image_path.parent.name / "x.jpg") is None
@@ -30,6 +31,7 @@ def test_another_world_version_or_no_marker_is_unknown(tmp_path):
     assert camera_frame.camera_rotation(jobs[0].image_path) is None  # a download: no marker
     _mark(tmp_path, "webcam_clipart", world=presets.WORLD_VERSION - 1)
     camera_frame._planned_rotations.cache_clear()
+    camera_frame._world_root.cache_clear()
     assert camera_frame.camera_rotation(jobs[0].image_path) is None
 
 
@@ -68,6 +70,7 @@ def test_capture_conditions_give_the_sun_in_the_renderers_camera_frame(tmp_path)
     assert np.isfinite(unknown["sun_azimuth_deg"]).all()
     _mark(tmp_path, "cmu_seasons")
     camera_frame._planned_rotations.cache_clear()
+    camera_frame._world_root.cache_clear()
     got = capture_conditions.capture_conditions(captures, "cmu_seasons")
     for i, job in enumerate(jobs):
         el, az = sun.sun_in_camera_frame(got["sun_elevation_deg"][i], got["sun_azimuth_deg"][i],
