@@ -40,10 +40,15 @@ $(INSTALLED): pyproject.toml | $(PY)
 demo: $(INSTALLED)
 	$(PY) -m experiments.webcam_clipart
 
-# Lint first: a ruff finding fails the target before pytest runs.
+# Lint first: a ruff finding fails the target before pytest runs. pytest-xdist runs the test
+# files on PYTEST_WORKERS processes, each file whole on one worker (--dist loadfile: a
+# module's fixtures are built once). Run serially, one core sat idle through most of the
+# suite (JAX compiles, OpenCV and Python are mostly one thread): 15-17 min on 2 cores
+# against about 11-12 in two workers (2026-12-02; README "Two commands").
+PYTEST_WORKERS ?= 2
 test: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile
 
 # Rules in pyproject.toml ([tool.ruff.lint]); ruff reads the notebooks' code cells too.
 lint: $(INSTALLED)
