@@ -355,7 +355,9 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
         shown = ", ".join(f"{stage} {a:.1f} -> {b:.1f}" for stage, (a, b) in loads.items())
         lines.append(
             f"- Load average (1 min) before -> after each stage on this {cores}-core "
-            f"machine: {shown}. Above {cores}, other processes were competing for the cores."
+            f"machine: {shown}. Above {cores}, more threads were runnable than there are "
+            f"cores: before a stage, other processes; after it, also this run's own worker "
+            f"processes, which are all started and warmed up together."
         )
     started = {stage: e["started"] for stage, e in results.items() if "started" in e}
     if len(set(started.values())) > 1:

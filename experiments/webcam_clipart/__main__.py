@@ -12,12 +12,4 @@ from experiments import cli
 from experiments.webcam_clipart.config import get_config
 
 if __name__ == "__main__":
-    from rp_jax import platform
-
-    # Speed only (`make demo` runs this): glibc keeps the memory XLA frees instead of
-    # page-faulting every train step's temporaries in again (rp_jax.platform.tune_malloc;
-    # the numbers computed do not change: the run's metrics were compared equal with and
-    # without it). Training is most of the demo; prediction, which it slowed in one
-    # benchmark run, is seconds here.
-    platform.tune_malloc()
     sys.exit(cli.main(None, "webcam_clipart", get_config, __doc__))
