@@ -170,7 +170,8 @@ VARIANTS: dict[str, Variant] = {
             True,
             malloc=True,
             description="JAX, 2 devices + YNN + tune_malloc (rp_jax.platform.configure_cpu("
-            "malloc=True)), conv1 as a 12x12 stride-4 convolution of the image (model default)",
+            "malloc=True), what the Sec. IV-A commands train with), conv1 as a 12x12 stride-4 "
+            "convolution of the image (model default)",
         ),
         Variant(
             "jax_2dev_ynn_malloc_bf16",
