@@ -265,9 +265,18 @@ def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = Tru
             import multiprocessing as mp
 
             ctx = mp.get_context("spawn")
-            with ctx.Pool(workers, initializer=_worker_init) as pool:
+            pool = ctx.Pool(workers, initializer=_worker_init)
+            try:
                 for _ in pool.imap_unordered(render_job, todo, chunksize=2):
                     bar.update()
+                # A clean end: the workers exit on their own. Leaving the pool through
+                # ``with`` terminates it, and its SIGTERM could reach a worker that was
+                # already shutting down, whose JAX signal handler then printed a stack
+                # trace ("*** SIGTERM received ***") into a run that had succeeded.
+                pool.close()
+                pool.join()
+            finally:
+                pool.terminate()  # a failed render: stop the others (no-op after join)
     finally:
         bar.close()
     return len(todo)
