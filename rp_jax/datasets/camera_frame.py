@@ -60,14 +60,13 @@ def _world_root(image_dir: Path) -> Path | None:
 @functools.lru_cache(maxsize=8)
 def _planned_rotations(root: Path) -> dict[str, np.ndarray] | None:
     """Image path relative to ``root`` -> the renderer's R, for a world of this version."""
-    from rp_jax.sources.synthetic import output_folder, presets
+    from rp_jax.sources.synthetic import presets
 
-    marker = output_folder.folder_parameters(root) or {}
-    if (marker.get("world") != presets.WORLD_VERSION
-            or marker.get("preset") not in presets.PRESET_NAMES):
+    marker = presets.world_marker(root)
+    if marker is None:
         return None
     try:
-        plan = presets.plan(marker["preset"], root, size=marker["size"], seed=int(marker["seed"]))
+        plan = presets.plan(marker["preset"], root, size=marker["size"], seed=marker["seed"])
     except (KeyError, TypeError, ValueError):
         return None
     return {Path(job.image_path).relative_to(root).as_posix(): np.asarray(job.R, np.float64)

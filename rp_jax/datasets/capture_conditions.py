@@ -103,16 +103,10 @@ def _synthetic_scene(scene_json: Path) -> tuple[int, float, float] | None:
 def _synthetic_cmu_world(root: Path) -> int | None:
     """The world seed of a synthetic Extended CMU Seasons layout at ``root`` rendered by
     this world version; None for a real download (no marker) or another version."""
-    from rp_jax.sources.synthetic import output_folder, presets
+    from rp_jax.sources.synthetic import presets
 
-    marker = output_folder.folder_parameters(root)
-    if (not marker or marker.get("preset") != "cmu_seasons"
-            or marker.get("world") != presets.WORLD_VERSION):
-        return None
-    try:
-        return int(marker["seed"])
-    except (KeyError, TypeError, ValueError):
-        return None
+    marker = presets.world_marker(root, "cmu_seasons")
+    return None if marker is None else marker["seed"]
 
 
 def synthetic_cmu_conditions(image_path: str | Path, when):

@@ -78,6 +78,7 @@ __all__ = [
     "run_jobs",
     "webcam_days",
     "webcam_times",
+    "world_marker",
     "write_reference_model",
 ]
 
@@ -104,6 +105,28 @@ PRESET_NAMES = (
 #    4 hours before) and window glass mirrors the sky (``render._reflect_sky_in_glass``).
 WORLD_VERSION = 4
 SIZES = ("tiny", "small", "full")
+
+
+def world_marker(root: str | Path, preset: str | None = None) -> dict | None:
+    """The generator's marker of the synthetic world at ``root`` (``preset``, ``size`` and
+    ``seed``, an int), if this world version rendered it; None for a real download (no
+    marker), another version, another preset than ``preset`` or an unreadable seed.
+
+    The one test of "a synthetic world of this version" for readers that re-derive what the
+    renderer drew from its parameters (``datasets.capture_conditions``' weather,
+    ``datasets.camera_frame``'s rotations).
+    """
+    from rp_jax.sources.synthetic import output_folder
+
+    marker = output_folder.folder_parameters(Path(root)) or {}
+    if marker.get("world") != WORLD_VERSION or marker.get("preset") not in PRESET_NAMES:
+        return None
+    if preset is not None and marker["preset"] != preset:
+        return None
+    try:
+        return {**marker, "seed": int(marker["seed"])}
+    except (KeyError, TypeError, ValueError):
+        return None
 
 # --------------------------------------------------------------------------- entry points
 

@@ -549,3 +549,18 @@ def test_a_failing_frame_is_named(monkeypatch, tmp_path):
     with pytest.raises(RuntimeError, match=r"scene_00/\d{8}_\d{6}\.jpg.*boom"):
         presets.generate("webcam_clipart", tmp_path, size="tiny", workers=1, progress=False)
     assert not list(tmp_path.rglob("*.jpg"))  # nothing half-written
+
+
+def test_world_marker_names_a_world_of_this_version_only(tmp_path):
+    from rp_jax.sources.synthetic import output_folder
+
+    assert presets.world_marker(tmp_path) is None  # no marker: a real download
+    ours = {"preset": "cmu_seasons", "size": "tiny", "seed": "3",
+            "world": presets.WORLD_VERSION}
+    output_folder.mark(tmp_path, ours)
+    assert presets.world_marker(tmp_path) == {**ours, "seed": 3}
+    assert presets.world_marker(tmp_path, "cmu_seasons")["seed"] == 3
+    assert presets.world_marker(tmp_path, "robotcar") is None
+    for other in ({"world": presets.WORLD_VERSION - 1}, {"preset": "kitti"}, {"seed": "x"}):
+        output_folder.mark(tmp_path, {**ours, **other})
+        assert presets.world_marker(tmp_path) is None, other
