@@ -44,7 +44,8 @@ demo: $(INSTALLED)
 # files on PYTEST_WORKERS processes, each file whole on one worker (--dist loadfile: a
 # module's fixtures are built once). Run serially, one core sat idle through most of the
 # suite (JAX compiles, OpenCV and Python are mostly one thread): 15-17 min on 2 cores
-# against 12 min 20 s in two workers (clean clone, 2026-12-02; README "Two commands").
+# against 11 min 54 s to 13 min 48 s in two workers (three clean clones, 2026-12-02; README
+# "Two commands").
 PYTEST_WORKERS ?= 2
 test: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
