@@ -281,8 +281,8 @@ def main(argv, name: str, get_config, doc: str) -> int:
     if args.quiet:
         progress.set_quiet()
     # malloc: glibc keeps the memory XLA frees instead of page-faulting each train step's
-    # temporaries in again (rp_jax.platform.tune_malloc): the train step +19 % in the
-    # benchmark of 2026-12-02 on a quiet machine (1,676 against 1,408 samples/s), and the
+    # temporaries in again (rp_jax.platform.tune_malloc): the train step +19 % in
+    # experiments/results/benchmark.md (2026-12-02, quiet: 1,745 against 1,465 samples/s), the
     # numbers computed do not change (a webcam_clipart run's metrics compared equal with
     # and without it). Prediction, which it slowed in the same run, is seconds here.
     platform.configure_cpu(malloc=True)
