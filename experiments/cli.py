@@ -284,7 +284,7 @@ def main(argv, name: str, get_config, doc: str) -> int:
     # temporaries in again (rp_jax.platform.tune_malloc): the train step +19 % in
     # experiments/results/benchmark.md (2026-12-02, quiet: 1,745 against 1,465 samples/s), the
     # numbers computed do not change (a webcam_clipart run's metrics compared equal with
-    # and without it). Prediction, which it slowed in the same run, is seconds here.
+    # and without it). Prediction (-12 % and +9 % in two runs that day) is seconds here.
     platform.configure_cpu(malloc=True)
     from experiments.sec4a import config as sec4a_config
     from experiments.sec4a import experiment
