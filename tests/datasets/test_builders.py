@@ -42,7 +42,16 @@ def test_webcam_splits_follow_the_data_spec(webcam):
     # split (tiny world: 2 days x slots 0, 5, 10, 15, 20 of the 21, one training and the
     # test scene; synthetic_tiny keeps all rows, at most 150 detections per image). The
     # rendering, SIFT or the labelling changing moves them: bump the builder's VERSION.
-    assert {k: v.num_examples for k, v in splits.items()} == {"train": 797, "test": 832}
+    # The exact counts depend on the CPU's floating-point paths (rendering and SIFT run
+    # other SIMD kernels per CPU): measured {train 797, test 832} on an Intel Xeon
+    # (AVX-512) and {795, 833} on an AMD EPYC (AVX2), with or without OPENBLAS_CORETYPE.
+    # So each count is pinned to within 1 % of the Xeon's (8 records), four times the
+    # spread measured between the two CPUs; a larger change fails here.
+    counts = {k: v.num_examples for k, v in splits.items()}
+    for split, measured in {"train": 797, "test": 832}.items():
+        assert abs(counts[split] - measured) <= 0.01 * measured, (split, counts)
+    # At most 150 detections in each of the 10 images of a split.
+    assert all(0 < n <= 10 * 150 for n in counts.values())
     spec = load_spec("webcam_clipart")["splits"]["synthetic"]
     train_vps = {r["viewpoint"].decode() for r in all_records(webcam, "train")}
     test_vps = {r["viewpoint"].decode() for r in all_records(webcam, "test")}
