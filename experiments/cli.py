@@ -35,6 +35,7 @@ bools, ``--noconfig.FIELD``) and their errors are ``config_flags``' own.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import sys
 from collections.abc import Callable
@@ -288,7 +289,7 @@ def main(argv, name: str, get_config, doc: str) -> int:
     platform.configure_cpu(malloc=True)
     from experiments.sec4a import config as sec4a_config
     from experiments.sec4a import experiment
-    from rp_jax import train
+    from rp_jax import train, workdir_lock
     from rp_jax.sources.layout import LayoutError
 
     conditional = bool(args.ablation or config.model.conditions
@@ -298,6 +299,15 @@ def main(argv, name: str, get_config, doc: str) -> int:
               "(--config.model.conditions, --config.model.decay_time_scales, --ablation) is "
               "measured on held-out training viewpoints only in this release: add "
               "--cross-validate", file=sys.stderr)
+        return 2
+    # One run at a time in a workdir (rp_jax.workdir_lock): a second one stops here, at once
+    # (a workdir that is a file is left to sec4a_config.validate's message).
+    holding = (contextlib.nullcontext() if Path(workdir).is_file()
+               else workdir_lock.hold(workdir))
+    try:
+        holding.__enter__()
+    except workdir_lock.FolderBusyError as e:
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
     try:
         if conditional:  # beyond the paper: the paper's predictor and the conditional one
@@ -329,6 +339,8 @@ def main(argv, name: str, get_config, doc: str) -> int:
             raise
         print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
         return 2
+    finally:
+        holding.__exit__(None, None, None)
     b = metrics["baselines"]
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
     print(f"test MAE {metrics['test_mae']:.4f} "

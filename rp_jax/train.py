@@ -17,6 +17,7 @@ code runs on one CPU, two forced host devices, or a GPU.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
@@ -37,7 +38,7 @@ from flax.training import train_state
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from rp_jax import checkpoints, distributed, files, losses, time_encoding
+from rp_jax import checkpoints, distributed, files, losses, time_encoding, workdir_lock
 from rp_jax import model as model_lib
 from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default as configs_default
@@ -469,6 +470,10 @@ def train_and_evaluate(
 ) -> TrainState:
     """Train (resuming if the workdir has checkpoints), validate each epoch, checkpoint.
 
+    The run holds its workdir (``rp_jax.workdir_lock``): a second run started on it stops at
+    once with ``workdir_lock.FolderBusyError`` naming this one, instead of training beside it
+    into the same checkpoints and ``metrics.jsonl``.
+
     Args:
       config: see ``rp_jax/configs/default.py``.
       workdir: the run's directory.
@@ -481,6 +486,34 @@ def train_and_evaluate(
     Returns:
       The final TrainState (replicated over the mesh).
     """
+    with _holding(workdir):
+        return _train_and_evaluate(config, workdir, train_source, val_source,
+                                   schedule=schedule, on_epoch_end=on_epoch_end,
+                                   progress=progress)
+
+
+@contextlib.contextmanager
+def _holding(workdir: str | os.PathLike):
+    """The workdir's lock, taken by the process that writes the run's files (process 0)."""
+    workdir = Path(workdir)
+    if not distributed.is_primary() or (workdir.exists() and not workdir.is_dir()):
+        yield  # a file: check_workdir says so, in its own words
+        return
+    with workdir_lock.hold(workdir):
+        yield
+
+
+def _train_and_evaluate(
+    config: ml_collections.ConfigDict,
+    workdir: str | os.PathLike,
+    train_source,
+    val_source=None,
+    *,
+    schedule: schedule_lib.TimeSchedule | None = None,
+    on_epoch_end: Callable[[int, dict], None] | None = None,
+    progress: bool = True,
+) -> TrainState:
+    """``train_and_evaluate``'s work, with the workdir held."""
     from rp_jax.progress import bar as tqdm  # the one progress helper
 
     validate_config(config)

@@ -130,24 +130,24 @@ def build_lock(builder):
 
     TFDS builds into ``<config>/incomplete.XXXXXX_<version>/`` and renames it when done; a
     build killed meanwhile leaves it for ever (one of 7 MB was found). Every build here takes
-    this lock (``fcntl.flock`` on ``<config>/.<version>.build.lock``, released by the kernel
-    when its holder dies), so under the lock no other build is writing one: each such folder
-    of this version is stale and is removed. Other versions' folders are not touched.
+    this lock (``rp_jax.workdir_lock``: ``fcntl.flock`` on ``<config>/.<version>.build.lock``,
+    released by the kernel when its holder dies, the file naming its holder), so under the
+    lock no other build is writing one: each such folder of this version is stale and is
+    removed. Other versions' folders are not touched. A second build of the same version
+    waits for the first, saying whom it waits for (process id and start time), then finds
+    the dataset built: the data directory is a cache shared by runs, unlike a workdir.
     """
-    import fcntl
+    from rp_jax import workdir_lock
 
     data_dir = Path(builder.data_dir)
-    data_dir.parent.mkdir(parents=True, exist_ok=True)
-    with open(data_dir.parent / f".{data_dir.name}.build.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # waits for a build of the same version
-        try:
-            for stale in sorted(data_dir.parent.glob(f"incomplete.*_{data_dir.name}")):
-                if stale.is_dir() and not stale.is_symlink():
-                    log.warning("removing %s, the partial build of a killed run", stale)
-                    shutil.rmtree(stale)
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+    lock = data_dir.parent / f".{data_dir.name}.build.lock"
+    with workdir_lock.hold_file(lock, lambda who: f"{data_dir} is being built by {who}",
+                                wait=True):
+        for stale in sorted(data_dir.parent.glob(f"incomplete.*_{data_dir.name}")):
+            if stale.is_dir() and not stale.is_symlink():
+                log.warning("removing %s, the partial build of a killed run", stale)
+                shutil.rmtree(stale)
+        yield
 
 
 def _check(builder, manual_dir: Path) -> None:
