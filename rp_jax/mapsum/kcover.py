@@ -6,16 +6,27 @@ Cao & Snavely (CVPR 2014) weight a point by how likely it is to be matched (its
 distinctiveness), turning the count into an expected count. Fig. 11 of the paper compares
 against this baseline at equal map size.
 
-Algorithm (greedy set multi-cover with lazy evaluation). Let ``cov[i]`` be the (weighted)
-number of selected points seen by image i; image i is *open* while ``cov[i] < K``. The gain
-of an unselected point p is ``w_p * |{i in track(p): cov[i] < K}|`` (``w_p = 1`` unweighted:
-the number of its images still short of K; weighted, a selected point adds its match
-probability ``w_p`` to the expected number of matched points of each image it sees). The gain
-only decreases as points are selected, so a priority queue of stale gains is exact: pop the
-best, recompute, and accept it if it still beats the next entry; ties go to the lower point
-row. The result equals plain greedy with the same tie rule. (A gain truncated at ``K``,
-``sum min(w_p, K - cov[i])``, changes at every selection near saturation and made the lazy
-queue re-evaluate whole images each step; the open-image form changes once per image.)
+Algorithm (greedy set multi-cover with lazy evaluation). Let ``cov[i]`` be the number of
+selected points seen by image i; image i is *open* while ``cov[i] < K``. The gain of an
+unselected point p is ``w_p * |{i in track(p): cov[i] < K}|`` (``w_p = 1`` unweighted: the
+number of its images still short of K). The gain only decreases as points are selected, so
+a priority queue of stale gains is exact: pop the best, recompute, and accept it if it
+still beats the next entry; ties go to the lower point row. The result equals plain greedy
+with the same tie rule.
+
+Weighted K-cover, units (Cao & Snavely's weights; Sec. II of the paper, "weighted K-cover
+... considers the discriminative power"): **coverage is counted in points and the weight
+enters only the gain.** ``K`` is a number of points, so ``cov[i]`` must be one too: a
+selected point adds 1 to each image it sees, whatever its weight. The weight only decides
+*which* point covers an open image first (a likely match before an unlikely one). Why not
+the other option (add ``w_p`` to ``cov`` and scale ``K`` by the weights): with weights from
+a predictor (RP scores near 0.1) the images' K, stated in points, would then never be
+reached, every image would stay open to the end, the gain would be ``w_p * track length``
+and the "cover" would be top-``w * track`` per part, with no image protected; and the
+scaled ``K`` would depend on how the predictor's scores are calibrated. Counting points
+keeps both guarantees of K-cover whatever the weights: with all weights equal the
+selection is exactly K-cover's, and every image keeps at least ``min(K, its points)``
+where the budget allows.
 
 Equal size (how this baseline is made comparable): the greedy runs independently in each
 part of the map (the same partition as every other method; coverage counts the part's own
@@ -58,8 +69,8 @@ def greedy_kcover(
       track_images: [n_obs] image index (0..n_images-1) of each observation.
       target: number of points to select (capped at n).
       K: coverage required per image; None for the default of the module docstring.
-      weights: [n] point weights in (0, 1] (Cao & Snavely's match probability /
-        distinctiveness); None for 1.
+      weights: [n] positive point weights (Cao & Snavely's match probability /
+        distinctiveness); None for 1. They scale the gain only: coverage counts points.
 
     Returns:
       [target] int64 point indices in the order the greedy selected them.
@@ -131,9 +142,8 @@ def greedy_kcover(
             if not heap or (-g, p) <= heap[0]:
                 selected[p] = True
                 order.append(p)
-                wp = w_list[p]
                 for i in track_lists[p]:
-                    cov_list[i] += wp
+                    cov_list[i] += 1.0  # coverage in points: K is a number of points
                 bar.update(1)
             else:
                 heapq.heappush(heap, (-g, p))

@@ -38,7 +38,7 @@ def _brute_force_greedy(tracks, n_images, target, K, weights=None):
             continue
         best = int(np.argmax(gains))  # first index among ties
         chosen.append(best)
-        cov[tracks[best]] += w[best]
+        cov[tracks[best]] += 1  # coverage counts points; the weight is in the gain only
     return chosen
 
 
@@ -58,6 +58,39 @@ def test_weighted_lazy_greedy_equals_brute_force():
     weights = rng.uniform(0.1, 1.0, 30)
     got = greedy_kcover(offsets, images, 15, K=2, weights=weights)
     assert got.tolist() == _brute_force_greedy(tracks, 6, 15, 2, weights)
+
+
+@pytest.mark.parametrize("w", [1e-3, 0.1, 0.7])
+def test_equal_weights_select_exactly_what_kcover_selects(w):
+    """Equal weights scale every gain alike: the weighted cover is K-cover, point for point
+    (on the old code, where a point added its weight to coverage, images stayed open long
+    after K points and the selections parted)."""
+    rng = np.random.default_rng(11)
+    tracks, offsets, images = _random_tracks(rng, 120, 10, 4)
+    for target in (10, 40, 90):
+        plain = greedy_kcover(offsets, images, target, K=3)
+        weighted = greedy_kcover(offsets, images, target, K=3, weights=np.full(120, w))
+        assert weighted.tolist() == plain.tolist()
+
+
+def test_weighted_cover_keeps_min_k_per_image_where_the_budget_allows():
+    """Whatever the weights (here tiny, like RP scores), every image keeps at least
+    min(K, its points) when the budget is large enough; on the old code a weight of 0.05
+    made an image count 20 points as one and the least-covered image fell short."""
+    rng = np.random.default_rng(4)
+    n_images, K = 10, 4
+    tracks, offsets, images = _random_tracks(rng, 150, n_images, 3)
+    weights = rng.uniform(0.01, 0.1, 150)
+    # The weights favour points of images 0-4: image 9's points are the least likely.
+    weights[[p for p, t in enumerate(tracks) if 9 in t]] = 1e-3
+    total = np.bincount(images, minlength=n_images)
+    chosen = greedy_kcover(offsets, images, 45, K=K, weights=weights)
+    cov = np.bincount(np.concatenate([tracks[p] for p in chosen]), minlength=n_images)
+    assert np.all(cov >= np.minimum(K, total)), (cov, total)
+    # Within that guarantee the weights decide: the likeliest points are chosen first.
+    first = chosen[0]
+    assert weights[first] * len(tracks[first]) == max(
+        weights[p] * len(t) for p, t in enumerate(tracks))
 
 
 def test_every_image_keeps_k_points_where_possible():
