@@ -1,20 +1,25 @@
 """Oracle scores for map summarization: the headroom any predictor is measured against.
 
-Two oracles rank map points with knowledge no deployed method has; they are reported next
-to every method (and marked as oracles) so that a figure says how much a predictor left
-on the table:
+The oracles rank map points with knowledge no deployed method has; they are reported next
+to every method (and marked as oracles) so that a figure says how much a predictor left on
+the table (Sec. V of the paper summarizes the map "given the query time": the oracles say
+what knowing the query's date could be worth at most). Two of them form a matched pair:
 
-* ``oracle_agnostic``: a point's number of PnP inliers in full-map localizations of the
-  queries of the *other* dates. It knows which points match in practice but not when: the
-  best a time-agnostic score could do.
-* ``oracle_date``: a point's ground-truth repeatability on the query's *own* date, in the
-  paper's sense (Sec. III-D: nearest neighbour + ratio test + geometric verification): the
-  number of that date's query images in which the point, projected with the query's
-  ground-truth pose, is the ratio-test nearest neighbour of a query keypoint that lies
-  within ``radius_px`` of its projection. The best a time-aware score could do.
+* ``oracle_date``: a point's ground-truth re-detection (Sec. III-D's sense: nearest
+  neighbour + ratio test + geometric verification) in the *other* posed queries of the
+  query's own date: the number of those images in which the point, projected with that
+  image's ground-truth pose, is the ratio-test nearest neighbour of a keypoint within
+  ``radius_px`` of its projection. **The query being scored never enters its own score**
+  (``date_oracle_members`` leaves it out): its own re-detection alone ranks its PnP inliers
+  almost perfectly, and counting it measured self-inclusion, not time.
+* ``oracle_agnostic``: the same re-detection count in the same number of posed queries
+  drawn from the *other* dates (``matched_agnostic_members``). The two see as many images
+  and differ only in the date; if ``oracle_date`` does not beat it, the world (or dataset)
+  has no date-specific matchability for a time-aware predictor to exploit.
 
-If ``oracle_date`` does not beat ``oracle_agnostic``, the world (or dataset) has no
-date-specific matchability for a time-aware predictor to exploit.
+A diagnostic oracle of a different kind (``agnostic_counts``): a point's PnP inliers in
+full-map localizations of the queries of every other date (all of them, about ten times as
+many images as the matched pair sees).
 
 Ties (many points score 0) are broken by track length: ``score + track / (max_track + 1)``
 never lets track length override a count difference.
@@ -31,7 +36,11 @@ from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
     "agnostic_counts",
+    "date_oracle_members",
+    "hit_counts",
+    "matched_agnostic_members",
     "redetection_counts",
+    "redetection_hits",
     "with_track_tiebreak",
 ]
 
@@ -56,7 +65,8 @@ def agnostic_counts(inliers_by_date: Mapping[object, np.ndarray], date: object) 
     others = [v for d, v in inliers_by_date.items() if d != date]
     if not others:
         raise ValueError(
-            f"oracle_agnostic needs queries of at least two dates; only {list(inliers_by_date)}"
+            "the other dates' inlier oracle needs queries of at least two dates; only "
+            f"{list(inliers_by_date)}"
         )
     return np.sum(np.stack(others), axis=0).astype(np.int64)
 
@@ -71,7 +81,7 @@ def _project(xyz: np.ndarray, R: np.ndarray, t: np.ndarray, K: np.ndarray):
     return uv, z
 
 
-def redetection_counts(
+def redetection_hits(
     map_points: MapPoints,
     point_descriptors: np.ndarray,
     queries: Iterable[
@@ -80,8 +90,8 @@ def redetection_counts(
     *,
     radius_px: float = 4.0,
     ratio: float = 0.8,
-) -> np.ndarray:
-    """[P] number of the given query images in which each point is re-detected and matched.
+) -> list[np.ndarray]:
+    """Per query image, the sorted rows of the points it re-detects and matches.
 
     Args:
       map_points: the full map.
@@ -94,11 +104,11 @@ def redetection_counts(
       ratio: Lowe's ratio of the nearest-neighbour test (as in localization).
 
     Returns:
-      [P] int64 counts.
+      One int64 array of point rows per query, in the order given.
     """
     desc = np.asarray(point_descriptors, np.float32)
     has = np.all(np.isfinite(desc), axis=1)
-    counts = np.zeros(map_points.num_points, np.int64)
+    out = []
     for xy, qdesc, K, R, t, size in queries:
         w, h = size
         uv, z = _project(map_points.xyz, R, t, K)
@@ -106,12 +116,64 @@ def redetection_counts(
         vis &= (uv[:, 0] >= -0.5) & (uv[:, 0] < w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < h - 0.5)
         rows = np.flatnonzero(vis)
         if len(rows) < 2 or len(xy) == 0:
+            out.append(np.zeros(0, np.int64))
             continue
         qi, ci = match_2d3d(np.asarray(qdesc, np.float32), desc[rows], ratio=ratio)
         if len(qi) == 0:
+            out.append(np.zeros(0, np.int64))
             continue
         matched = rows[ci]
         ok = np.linalg.norm(np.asarray(xy, np.float64)[qi] - uv[matched], axis=1) <= radius_px
-        hit = np.unique(matched[ok])
-        counts[hit] += 1
-    return counts
+        out.append(np.unique(matched[ok]).astype(np.int64))
+    return out
+
+
+def hit_counts(hits: Sequence[np.ndarray], members: Iterable[int], num_points: int) -> np.ndarray:
+    """[P] number of the ``members`` (indices into ``hits``) that re-detect each point."""
+    rows = [hits[j] for j in members]
+    if not rows:
+        return np.zeros(num_points, np.int64)
+    return np.bincount(np.concatenate(rows), minlength=num_points).astype(np.int64)
+
+
+def date_oracle_members(dates: Sequence[object], posed: Sequence[bool], query: int) -> list[int]:
+    """The evidence of ``oracle_date`` for query ``query``: the posed queries of its date
+    other than itself (its own re-detection never enters its score)."""
+    d = dates[query]
+    return [j for j, (dj, pj) in enumerate(zip(dates, posed)) if pj and dj == d and j != query]
+
+
+def matched_agnostic_members(
+    dates: Sequence[object], posed: Sequence[bool], date: object, count: int, *, seed: int = 0
+) -> list[int]:
+    """The evidence of ``oracle_agnostic`` for the queries of ``date``: ``count`` posed
+    queries drawn (without replacement, seeded) from the *other* dates, as many as the date
+    oracle sees, so that the two oracles differ only in the date.
+
+    Raises ValueError when the other dates hold fewer posed queries than ``count``.
+    """
+    pool = [j for j, (dj, pj) in enumerate(zip(dates, posed)) if pj and dj != date]
+    if len(pool) < count:
+        raise ValueError(
+            f"oracle_agnostic needs {count} posed queries of dates other than {date}; "
+            f"there are {len(pool)}"
+        )
+    rng = np.random.default_rng(seed)
+    return sorted(rng.choice(pool, size=count, replace=False).tolist()) if count else []
+
+
+def redetection_counts(
+    map_points: MapPoints,
+    point_descriptors: np.ndarray,
+    queries: Iterable[
+        tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, Sequence[int]]
+    ],
+    *,
+    radius_px: float = 4.0,
+    ratio: float = 0.8,
+) -> np.ndarray:
+    """[P] number of the given query images in which each point is re-detected and matched
+    (arguments as :func:`redetection_hits`)."""
+    hits = redetection_hits(map_points, point_descriptors, queries, radius_px=radius_px,
+                            ratio=ratio)
+    return hit_counts(hits, range(len(hits)), map_points.num_points)
