@@ -69,6 +69,12 @@ class LocalizationResult:
     inlier_points: np.ndarray = dataclasses.field(
         default_factory=lambda: np.zeros(0, np.int64)
     )
+    # Rows (same numbering) of every 3D point a 2D-3D match was proposed for, given to
+    # PnP-RANSAC: what the localization-outcome labels call a candidate
+    # (``rp_jax.mapsum.localization_outcomes``).
+    matched_points: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros(0, np.int64)
+    )
 
     @property
     def success(self) -> bool:
@@ -171,7 +177,9 @@ def localize(
     inlier_points = (
         localization_map.rows[rows[pose.inliers]] if pose.success else np.zeros(0, np.int64)
     )
-    return LocalizationResult(pose, retrieved, len(candidates), len(q_idx), inlier_points)
+    return LocalizationResult(
+        pose, retrieved, len(candidates), len(q_idx), inlier_points, localization_map.rows[rows]
+    )
 
 
 def localize_queries(
