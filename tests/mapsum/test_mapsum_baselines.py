@@ -61,3 +61,37 @@ def test_random_is_seeded():
 def test_unknown_method():
     with pytest.raises(ValueError, match="unknown summarization method"):
         summarize("oracle", _map(np.random.default_rng(0)), 0.5, None)
+
+
+def _hand_map():
+    """Images 1-3: points 0-3 (tracks of 3) see images 1 and 2; points 4 and 5 (tracks
+    of 1) are the only ones image 3 sees."""
+    tracks = [[1, 2, 1], [1, 2, 2], [1, 2, 1], [2, 1, 2], [3], [3]]
+    obs_point = np.repeat(np.arange(6), [len(t) for t in tracks])
+    return MapPoints(
+        xyz=np.zeros((6, 3)),
+        point3D_ids=np.arange(6) + 1,
+        obs_point=obs_point,
+        obs_image_id=np.concatenate(tracks),
+        obs_point2D_idx=np.arange(len(obs_point)),
+        obs_xy=np.zeros((len(obs_point), 2)),
+    )
+
+
+def test_maplab_keeps_the_most_observed_and_a_minimum_per_image():
+    from rp_jax.mapsum.baselines import maplab_keep
+
+    mp = _hand_map()
+    # Budget 3 (50 %): most observed alone keeps points 0-2 and leaves image 3 bare.
+    np.testing.assert_array_equal(np.flatnonzero(most_observed_keep(mp, 0.5, None)), [0, 1, 2])
+    # With one point per image required: points 0 (images 1, 2) and 4 (image 3) first,
+    # then the longest remaining track, point 1.
+    keep = maplab_keep(mp, 0.5, None, min_per_image=1)
+    np.testing.assert_array_equal(np.flatnonzero(keep), [0, 1, 4])
+    # Without a minimum it is the most observed; a minimum the budget cannot meet stops at
+    # the budget.
+    np.testing.assert_array_equal(maplab_keep(mp, 0.5, None, min_per_image=0),
+                                  most_observed_keep(mp, 0.5, None))
+    assert maplab_keep(mp, 0.5, None, min_per_image=5).sum() == 3
+    # The default minimum: floor(3 * (14 / 6) / 3 / 2) = 1 point per image at this budget.
+    np.testing.assert_array_equal(maplab_keep(mp, 0.5, None), keep)
