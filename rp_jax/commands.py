@@ -5,7 +5,9 @@ wrote). They share the project's one flag vocabulary (``rp_jax.command_line``: `
 is a trained predictor, ``--model`` a COLMAP model, ``--out`` the output, ``--quiet`` no
 progress) and one rule for bad input: a single line
 ``<command>: error: <what, naming the file or flag>`` on stderr and exit status 2 (argparse's
-own status for a bad flag), never a traceback.
+own status for a bad flag), never a traceback. Their ``--out`` is a ``files.OutputFolder``:
+a file the user put there is never replaced without ``--overwrite``, and a failed run leaves
+nothing of itself behind.
 """
 
 from __future__ import annotations
@@ -17,13 +19,18 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from rp_jax.files import OutputExistsError
 from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
 from rp_jax.sources.layout import LayoutError
 
-__all__ = ["InputError", "INPUT_ERRORS", "datetime_flag", "load_predictor", "run_command"]
+__all__ = ["InputError", "INPUT_ERRORS", "OVERWRITE_HELP", "datetime_flag", "load_predictor",
+           "run_command"]
 
 EXIT_BAD_INPUT = 2
+OVERWRITE_HELP = ("replace files in --out that this command did not write (without it such a "
+                  "file stops the run before any work; the command's own outputs of an earlier "
+                  "run are replaced either way)")
 
 
 class InputError(ValueError):
@@ -32,7 +39,7 @@ class InputError(ValueError):
 
 # What a command reports in one line (exit 2); anything else is a bug and keeps its traceback.
 INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError,
-                OutsideScheduleError)
+                OutsideScheduleError, OutputExistsError)
 
 
 def datetime_flag(text: str) -> dt.datetime:

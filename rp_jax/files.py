@@ -12,6 +12,12 @@ temporary file is removed and the final name is untouched.
 wants a file name (``cv2.imwrite``, ``np.savez``, ``savefig``, h5py); ``write_bytes``,
 ``write_text`` and ``write_json`` are the common cases. ``publish_dir`` does the same for a
 folder written in full (a COLMAP model).
+
+``OutputFolder`` is a command's ``--out``: it refuses, before any work, to replace a file the
+project did not write there (a user's own ``summary.json``), unless told to overwrite; it
+records what it wrote (``.rp_jax_outputs.json``: name, size, modification time) so that a
+second run replaces its own outputs without asking; and a run that fails leaves nothing of
+itself behind (what it wrote is removed, and the folder if it made it).
 """
 
 from __future__ import annotations
@@ -26,7 +32,18 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["publish_dir", "replacing", "write_bytes", "write_json", "write_text"]
+__all__ = [
+    "OUTPUTS_RECORD",
+    "OutputExistsError",
+    "OutputFolder",
+    "publish_dir",
+    "replacing",
+    "write_bytes",
+    "write_json",
+    "write_text",
+]
+
+OUTPUTS_RECORD = ".rp_jax_outputs.json"
 
 
 def _umask() -> int:
@@ -126,3 +143,89 @@ def publish_dir(tmp_dir: str | os.PathLike, path: str | os.PathLike) -> Path:
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
     return path
+
+
+class OutputExistsError(FileExistsError):
+    """An output would replace a file or folder that the project did not write there."""
+
+
+def _state(path: Path) -> dict | None:
+    """What identifies a written output: a folder, or a file's size and modification time."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    if path.is_dir():
+        return {"dir": True}
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns}
+
+
+class OutputFolder:
+    """A command's output folder (see the module docstring); a context manager.
+
+    ``with OutputFolder(out, names, overwrite=False) as folder:`` checks, on entering, that
+    no name in ``names`` (files or folders inside ``out``) exists there unless this project
+    wrote it (its record says so and the file is as it was written) or ``overwrite`` is
+    set. On a clean exit it records every name that exists. On an exception it removes every
+    name that the run created or changed, and ``out`` itself if the run created it and it
+    is empty, then lets the exception go on. The folder is not created here: the writers
+    create it with their first file.
+
+    Attributes:
+      path: the folder.
+    """
+
+    def __init__(self, path: str | os.PathLike, names, *, overwrite: bool = False,
+                 flag: str = "--out"):
+        self.path = Path(path)
+        self.names = list(dict.fromkeys(str(n) for n in names))
+        self.overwrite = overwrite
+        self.flag = flag
+        self._created = False
+        self._before: dict[str, dict | None] = {}
+
+    def _record(self) -> dict:
+        try:
+            record = json.loads((self.path / OUTPUTS_RECORD).read_text())
+        except (OSError, ValueError):
+            return {}
+        return record if isinstance(record, dict) else {}
+
+    def ours(self, name: str) -> bool:
+        """Whether ``name`` in the folder is as this project wrote it."""
+        state = _state(self.path / name)
+        return state is not None and self._record().get(name) == state
+
+    def __enter__(self) -> OutputFolder:
+        if self.path.exists() and not self.path.is_dir():
+            raise OutputExistsError(f"{self.flag} {self.path} is a file, not a folder")
+        if not self.overwrite:
+            theirs = [n for n in self.names if (self.path / n).exists() and not self.ours(n)]
+            if theirs:
+                shown = ", ".join(theirs[:3]) + (f" and {len(theirs) - 3} more"
+                                                 if len(theirs) > 3 else "")
+                raise OutputExistsError(
+                    f"{self.flag} {self.path} already holds {shown}, not written by this "
+                    "command: give another folder, move them, or add --overwrite")
+        self._created = not self.path.exists()
+        self._before = {n: _state(self.path / n) for n in self.names}
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            record = self._record()
+            record.update({n: s for n in self.names if (s := _state(self.path / n))})
+            if record:
+                write_json(self.path / OUTPUTS_RECORD, record)
+            return
+        for n in self.names:
+            p = self.path / n
+            if _state(p) is not None and _state(p) != self._before.get(n):
+                if p.is_dir() and not p.is_symlink():
+                    shutil.rmtree(p, ignore_errors=True)
+                else:
+                    p.unlink(missing_ok=True)
+        if self._created and self.path.is_dir():
+            with contextlib.suppress(OSError):
+                if not any(self.path.iterdir()):
+                    self.path.rmdir()

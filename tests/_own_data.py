@@ -124,7 +124,7 @@ class Scene:
     images: Path  # database images
     queries: Path  # query images
     intrinsics: Path  # hloc's queries_with_intrinsics.txt
-    ground_truth: Path  # submission-format true poses of the queries
+    ground_truth: Path  # true poses of the queries, submission convention, with its header
     db_names: list[str]
     query_names: list[str]
     xyz: np.ndarray  # [P0, 3] every texture point (the 3D points are those with a track)
@@ -138,7 +138,7 @@ def make_scene(root: Path, *, n_db: int = 6, db_names: list[str] | None = None,
     """Renders the scene into ``root`` (see the module docstring)."""
     import pycolmap
 
-    from rp_jax.localize import write_submission
+    from rp_jax.localize.pose_files import write_pose_file
 
     root = Path(root)
     tex = texture(seed)
@@ -198,7 +198,8 @@ def make_scene(root: Path, *, n_db: int = 6, db_names: list[str] | None = None,
         lines.append(f"{name} PINHOLE {W} {H} {F} {F} {K[0, 2] + 0.5} {K[1, 2] + 0.5}")
     intrinsics = root / "queries_with_intrinsics.txt"
     intrinsics.write_text("\n".join(lines) + "\n")
-    ground_truth = write_submission(root / "ground_truth.txt", query_poses)
+    # The submission's convention (t), stated in the file's header line.
+    ground_truth = write_pose_file(root / "ground_truth.txt", query_poses, "submission")
     return Scene(root, model, images, queries, intrinsics, ground_truth, list(names),
                  sorted(query_poses), xyz, db_poses, query_poses, db_keypoints)
 

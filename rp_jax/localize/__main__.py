@@ -4,7 +4,10 @@
 
 Writes ``DIR/submission.txt`` (visuallocalization.net format) and ``DIR/localization.json``
 and prints, with ``--ground-truth``, the three-threshold accuracy table. The library
-function is ``rp_jax.localize.run.localize_folder``.
+function is ``rp_jax.localize.run.localize_folder``. A ground-truth file is read in the
+convention it states or ``--ground-truth-format`` gives (``rp_jax.localize.pose_files``:
+the submission's translation t, or the Extended CMU Seasons camera centre C); the
+dataset's own ``intrinsics.txt`` (per camera, ``c0``/``c1``) serves as ``--intrinsics``.
 """
 
 from __future__ import annotations
@@ -14,10 +17,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rp_jax import command_line, progress
-from rp_jax.commands import InputError, run_command
+from rp_jax import command_line, files, progress
+from rp_jax.commands import OVERWRITE_HELP, InputError, run_command
+from rp_jax.localize import pose_files
 from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS
-from rp_jax.localize.run import SUBMISSION, localize_folder, threshold_key
+from rp_jax.localize.run import RESULTS, SUBMISSION, localize_folder, threshold_key
 
 PROG = "python -m rp_jax.localize"
 
@@ -37,12 +41,21 @@ def _parser() -> argparse.ArgumentParser:
                    help="folder of query images (.jpg, .jpeg, .png; names relative to it)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     p.add_argument("--ground-truth", metavar="FILE",
-                   help="true query poses: a file of 'name qw qx qy qz tx ty tz' lines "
-                   "(world-to-camera, the submission format) or a COLMAP model folder")
+                   help="true query poses: a COLMAP model folder, or a file of 'name qw qx qy qz "
+                   "X Y Z' lines (world-to-camera rotation) in the convention it states: a '# "
+                   "name qw qx qy qz tx ty tz' or '... cx cy cz' header, or an Extended CMU "
+                   "Seasons ground-truth name (ground-truth-*-images-slice*.txt, camera-poses/"
+                   "*.txt: camera centres); else give --ground-truth-format")
+    p.add_argument("--ground-truth-format", choices=tuple(pose_files.FORMATS),
+                   help="what the last three numbers of a --ground-truth line are: submission, "
+                   "the translation t (visuallocalization.net); camera-centre, the camera "
+                   "centre C (Extended CMU Seasons / RobotCar Seasons ground truth, t = -R C)")
     p.add_argument("--intrinsics", metavar="FILE",
-                   help="query cameras, hloc's queries_with_intrinsics.txt lines 'name MODEL W "
-                   "H params...' (COLMAP models); default: the map's camera if it has exactly "
-                   "one of the query's size")
+                   help="query cameras: hloc's queries_with_intrinsics.txt lines 'name MODEL W "
+                   "H params...' (COLMAP models), or the dataset's intrinsics.txt of 'c0 OPENCV "
+                   "W H params...' lines (a query takes the camera its name holds, c0 in "
+                   "img_..._c0_...us.jpg); default: the map's camera if it has exactly one of "
+                   "the query's size")
     p.add_argument("--images", metavar="DIR",
                    help="database images of a plain COLMAP model given as --map (to describe it "
                    "with SIFT)")
@@ -63,6 +76,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-keypoints", type=int, default=4000, metavar="N",
                    help="SIFT keypoints per image (default 4000)")
     p.add_argument("--seed", type=int, default=0, help="RANSAC (and VLAD) seed (default 0)")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     command_line.add_quiet(p)
     return p
 
@@ -78,12 +92,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                                    ("--queries", args.queries, "folder of query images")):
             if not Path(folder).is_dir():
                 raise InputError(f"{flag} {folder}: no such {what}")
-        result = localize_folder(
-            args.map, args.queries, args.out, ground_truth=args.ground_truth,
-            images=args.images, features=args.features, global_features=args.global_features,
-            intrinsics=args.intrinsics, num_retrieved=args.num_retrieved,
-            match_ratio=args.match_ratio, reprojection_error=args.reprojection_error,
-            min_inliers=args.min_inliers, max_keypoints=args.max_keypoints, seed=args.seed)
+        with files.OutputFolder(args.out, [SUBMISSION, RESULTS], overwrite=args.overwrite):
+            result = localize_folder(
+                args.map, args.queries, args.out, ground_truth=args.ground_truth,
+                ground_truth_format=args.ground_truth_format, images=args.images,
+                features=args.features, global_features=args.global_features,
+                intrinsics=args.intrinsics, num_retrieved=args.num_retrieved,
+                match_ratio=args.match_ratio, reprojection_error=args.reprojection_error,
+                min_inliers=args.min_inliers, max_keypoints=args.max_keypoints, seed=args.seed)
         print(f"localized {result['localized']} of {result['queries']} queries against "
               f"{result['map_points']} map points; wrote {args.out}/{SUBMISSION}")
         if result["accuracy"] is not None:

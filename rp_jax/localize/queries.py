@@ -4,20 +4,27 @@
   name the submission file uses).
 * Intrinsics: hloc's ``queries_with_intrinsics.txt`` lines ``name MODEL W H params...``
   (COLMAP camera models and COLMAP's pixel convention, as hloc and the Aachen / CMU
-  benchmarks ship them; converted to OpenCV's by ``colmap_model.opencv_camera``). A query
-  without a line takes the map's camera when the map has exactly one and the sizes agree.
+  benchmarks ship them; converted to OpenCV's by ``colmap_model.opencv_camera``), or a
+  dataset's own per-camera file, the Extended CMU Seasons ``intrinsics.txt`` (``c0 OPENCV
+  1024 768 fx fy cx cy k1 k2 p1 p2``, one line per camera of the rig), which the synthetic
+  generator writes too: it is read by ``rp_jax.sources.cmu_seasons.read_intrinsics``, in the
+  pixel convention that reader gives it (OpenCV's), and a query takes the camera its name
+  names (``img_<i>_c0_<us>us.jpg``: ``c0``). A query without either takes the map's camera
+  when the map has exactly one and the sizes agree.
 * Local features: the kind the map was described with (``MapDescription.local_source``):
   SIFT detected on the image (distortion is left to PnP), or the query's group of the
   same hloc ``features.h5``.
 * Global descriptor: VLAD with the map's vocabulary, or the query's group of an hloc
   ``global-feats-*.h5``.
-* True poses (``read_poses``): a file in the submission format (``name qw qx qy qz tx ty
-  tz``, world-to-camera) or a COLMAP model of the queries.
+* True poses (``read_poses``): a COLMAP model of the queries, or a pose file in the
+  convention it states (``rp_jax.localize.pose_files``: the submission format's ``t`` or
+  the Extended CMU Seasons ground truth's camera centre).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -27,12 +34,13 @@ import pycolmap
 from rp_jax.groundtruth.features import detect_and_describe
 from rp_jax.localize.map_description import SIFT, MapDescription
 from rp_jax.localize.pipeline import QueryImage
-from rp_jax.localize.submission import read_submission
+from rp_jax.localize.pose_files import read_pose_file
 from rp_jax.sources import hloc, images
 from rp_jax.sources.colmap_model import opencv_camera, read_model
 from rp_jax.sources.layout import LayoutError
 
-__all__ = ["IMAGE_SUFFIXES", "list_images", "query_images", "read_intrinsics", "read_poses"]
+__all__ = ["IMAGE_SUFFIXES", "camera_of_name", "list_images", "query_images",
+           "read_intrinsics", "read_poses"]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 
@@ -55,8 +63,45 @@ def list_images(folder: str | os.PathLike) -> list[str]:
     return names
 
 
+def _is_camera_file(path: Path) -> bool:
+    """Whether an intrinsics file is keyed by camera (``c0 OPENCV ...``), not by image name."""
+    keys = [line.split()[0] for line in path.read_text().splitlines()
+            if line.strip() and not line.lstrip().startswith("#")]
+    return bool(keys) and all(Path(k).suffix.lower() not in IMAGE_SUFFIXES for k in keys)
+
+
+def _dataset_cameras(path: Path) -> dict[str, pycolmap.Camera]:
+    """Camera id -> pycolmap camera (COLMAP's pixel convention) of a per-camera file."""
+    from rp_jax.sources.cmu_seasons import read_intrinsics as read_camera_file
+    from rp_jax.sources.colmap_model import colmap_xy
+
+    out = {}
+    for cam_id, cam in read_camera_file(path).items():
+        fx, fy = float(cam.K[0, 0]), float(cam.K[1, 1])
+        cx, cy = colmap_xy(cam.K[:2, 2])
+        dist = [float(v) for v in np.asarray(cam.distortion).reshape(-1)]
+        model = "OPENCV" if dist else "PINHOLE"
+        params = [fx, fy, float(cx), float(cy), *dist]
+        out[cam_id] = pycolmap.Camera(model=model, width=int(cam.width), height=int(cam.height),
+                                      params=params)
+    return out
+
+
+def camera_of_name(name: str, cameras: Mapping[str, object]) -> str | None:
+    """The camera id (a key of ``cameras``) an image name names, e.g. ``c0`` in
+    ``img_00123_c0_1303398475046031us.jpg``; None when it names none or several."""
+    tokens = set(re.split(r"[_/.\-]", name.lower()))
+    found = [k for k in cameras if k.lower() in tokens]
+    return found[0] if len(found) == 1 else None
+
+
 def read_intrinsics(path: str | os.PathLike) -> dict[str, pycolmap.Camera]:
-    """Image name -> camera from hloc's ``name MODEL W H params...`` lines.
+    """Image name (or camera id) -> camera of an intrinsics file.
+
+    hloc's ``name MODEL W H params...`` lines are keyed by image name; a dataset's
+    per-camera file (Extended CMU Seasons ``intrinsics.txt``: ``c0 OPENCV W H fx fy cx cy k1
+    k2 p1 p2``) by camera id, which ``query_images`` finds in each query's name
+    (``camera_of_name``).
 
     Raises:
       FileNotFoundError: no such file.
@@ -65,6 +110,8 @@ def read_intrinsics(path: str | os.PathLike) -> dict[str, pycolmap.Camera]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such intrinsics file")
+    if _is_camera_file(path):
+        return _dataset_cameras(path)
     out = {}
     for line_no, line in enumerate(path.read_text().splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
@@ -85,12 +132,20 @@ def read_intrinsics(path: str | os.PathLike) -> dict[str, pycolmap.Camera]:
     return out
 
 
-def read_poses(path: str | os.PathLike) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Name -> world-to-camera (R, t) from a submission-format file or a COLMAP model folder.
+def read_poses(
+    path: str | os.PathLike, pose_format: str | None = None
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Name -> world-to-camera (R, t) from a COLMAP model folder or a pose file.
+
+    Args:
+      path: a COLMAP model folder, or a pose file (``rp_jax.localize.pose_files``).
+      pose_format: the file's convention (``"submission"``: t, ``"camera-centre"``: C);
+        None: the one the file states (a header, or an Extended CMU Seasons name), else
+        the file is refused.
 
     Raises:
       FileNotFoundError: no such file or folder.
-      LayoutError: naming the file and what is wrong.
+      LayoutError: naming the file and what is wrong (an unstated convention included).
     """
     path = Path(path)
     if path.is_dir():
@@ -102,10 +157,7 @@ def read_poses(path: str | os.PathLike) -> dict[str, tuple[np.ndarray, np.ndarra
         return out
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such ground-truth file")
-    try:
-        return read_submission(path)
-    except ValueError as err:
-        raise LayoutError(str(err)) from err
+    return read_pose_file(path, pose_format)
 
 
 def query_images(
@@ -157,6 +209,8 @@ def query_images(
     for name in names:
         path = folder / name
         key = intrinsics_names.find(name)
+        if key is None:  # a per-camera file: the camera the name names
+            key = camera_of_name(name, intrinsics)
         camera = None if key is None else intrinsics[key]
         if camera is None:
             size = images.probe_size(path)
@@ -164,8 +218,10 @@ def query_images(
                 camera = cams[0]
             else:
                 raise LayoutError(f"{path}: no intrinsics (give --intrinsics, a file of hloc's "
-                                  "'name MODEL W H params...' lines; the map's camera is used "
-                                  "only when it has exactly one of the query's size)")
+                                  "'name MODEL W H params...' lines or the dataset's "
+                                  "intrinsics.txt of 'c0 OPENCV W H params...' lines for "
+                                  "names holding c0; the map's camera is used only when it "
+                                  "has exactly one of the query's size)")
         K, dist, w, h = opencv_camera(camera)
         if features is not None:
             key = names_h5.find(name)

@@ -99,6 +99,7 @@ def localize_folder(
     out_dir: str | os.PathLike,
     *,
     ground_truth: str | os.PathLike | None = None,
+    ground_truth_format: str | None = None,
     images: str | os.PathLike | None = None,
     features: str | os.PathLike | None = None,
     global_features: str | os.PathLike | None = None,
@@ -118,6 +119,8 @@ def localize_folder(
       queries_dir: the query images.
       out_dir: output folder (created).
       ground_truth: true query poses (``queries.read_poses``), or None.
+      ground_truth_format: its convention, ``"submission"`` (t) or ``"camera-centre"`` (C);
+        None: the one the file states (``rp_jax.localize.pose_files``).
       images: database images, to describe a plain COLMAP model.
       features: hloc ``features.h5`` with the queries' (and, for a plain model, the
         database images') local features.
@@ -137,7 +140,7 @@ def localize_folder(
     queries_dir = Path(queries_dir)
     if not queries_dir.is_dir():
         raise FileNotFoundError(f"{queries_dir}: no such folder of query images")
-    gt = read_poses(ground_truth) if ground_truth is not None else None
+    gt = read_poses(ground_truth, ground_truth_format) if ground_truth is not None else None
     cams = read_intrinsics(intrinsics) if intrinsics is not None else None
     rec, map_points, description = load_map(
         map_dir, images=images, features=features, global_features=global_features,

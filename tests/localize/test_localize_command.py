@@ -183,3 +183,114 @@ def test_help_text_on_every_flag():
     proc = subprocess.run([sys.executable, "-m", "rp_jax.localize", "--help"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "--ground-truth" in proc.stdout
+
+
+def _centre_lines(poses) -> str:
+    """The Extended CMU Seasons ground-truth lines (camera centre C, no header)."""
+    from rp_jax.localize import camera_center, rotation_to_quaternion
+
+    return "".join(" ".join([name] + [repr(float(v)) for v in (*rotation_to_quaternion(R),
+                                                                 *camera_center(R, t))]) + "\n"
+                   for name, (R, t) in sorted(poses.items()))
+
+
+def _accuracy(out):
+    return json.loads((out / "localization.json").read_text())["accuracy"]
+
+
+def test_pose_conventions_give_the_same_accuracy(scene, tmp_path, capsys):
+    """Issue 27, finding 1: the layout's own camera-centre file was read as the submission's
+    t (0 % at every threshold, exit 0). The same poses written both ways now give the same
+    accuracy; a file that states neither convention is refused, naming both."""
+    cmu = tmp_path / "slice8" / "camera-poses" / "poses.txt"  # proven by its place
+    cmu.parent.mkdir(parents=True)
+    cmu.write_text(_centre_lines(scene.query_poses))
+    plain = tmp_path / "poses.txt"  # the same lines, nothing saying what they are
+    plain.write_text(cmu.read_text())
+    common = ["--map", scene.model, "--images", scene.images, "--queries", scene.queries,
+              "--intrinsics", scene.intrinsics]
+    results = {}
+    for name, extra in (("submission", ["--ground-truth", scene.ground_truth]),
+                        ("centre", ["--ground-truth", cmu]),
+                        ("flag", ["--ground-truth", plain, "--ground-truth-format",
+                                  "camera-centre"])):
+        assert _localize(*common, *extra, "--out", tmp_path / name) == 0, capsys.readouterr()
+        results[name] = _accuracy(tmp_path / name)
+    capsys.readouterr()
+    assert results["submission"] == {"0.25m_2deg": 100.0, "0.5m_5deg": 100.0, "5m_10deg": 100.0}
+    assert results["centre"] == results["flag"] == results["submission"]
+    # Unstated: refused, one line naming both conventions and the flag.
+    assert _localize(*common, "--ground-truth", plain, "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "poses.txt" in err and "--ground-truth-format" in err
+    assert "tx ty tz" in err and "cx cy cz" in err
+    # A choice the file contradicts: refused too.
+    assert _localize(*common, "--ground-truth", cmu, "--ground-truth-format", "submission",
+                     "--out", tmp_path / "o") == 2
+    assert "states camera-centre poses" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # a failed run leaves no --out behind
+
+
+def test_pose_file_round_trip(scene, tmp_path):
+    from rp_jax.localize import pose_files
+
+    for fmt in pose_files.FORMATS:
+        path = pose_files.write_pose_file(tmp_path / f"{fmt}.txt", scene.query_poses, fmt)
+        assert pose_files.proven_format(path) == fmt
+        back = read_poses(path)
+        for name, (R, t) in scene.query_poses.items():
+            np.testing.assert_allclose(back[name][0], R, atol=1e-9)
+            np.testing.assert_allclose(back[name][1], t, atol=1e-9)
+
+
+def test_the_datasets_own_intrinsics_file(scene, tmp_path, capsys):
+    """Issue 27, finding 7: the Extended CMU Seasons intrinsics.txt, keyed by camera (c0,
+    c1), is read; each query takes the camera its name holds. The queries here are twice
+    the map's size, so the map's camera cannot stand in for them."""
+    import cv2
+
+    from tests._own_data import CMU_T0
+
+    queries = tmp_path / "query"
+    queries.mkdir()
+    poses = {}
+    for i, name in enumerate(scene.query_names):
+        new = f"img_{i:05d}_c0_{CMU_T0 + i * 1_000_000}us.jpg"
+        rgb = cv2.imread(str(scene.queries / name))
+        cv2.imwrite(str(queries / new), cv2.resize(rgb, (640, 480), interpolation=cv2.INTER_LINEAR))
+        poses[new] = scene.query_poses[name]
+    # OpenCV's pixel convention, as rp_jax.sources.cmu_seasons reads the file: twice the
+    # size moves the principal point from 160 to 2 * 160 + 0.5.
+    intrinsics = tmp_path / "intrinsics.txt"
+    intrinsics.write_text("c0 OPENCV 640 480 600 600 320.5 240.5 0 0 0 0\n"
+                          "c1 OPENCV 640 480 450 450 300 200 0.1 0 0 0\n")
+    gt = tmp_path / "slice8" / "camera-poses" / "gt.txt"
+    gt.parent.mkdir(parents=True)
+    gt.write_text(_centre_lines(poses))
+    out = tmp_path / "loc"
+    rc = _localize("--map", scene.model, "--images", scene.images, "--queries", queries,
+                   "--intrinsics", intrinsics, "--ground-truth", gt, "--out", out)
+    assert rc == 0, capsys.readouterr().err
+    assert _accuracy(out)["0.5m_5deg"] == 100.0
+
+
+def test_user_files_in_out_are_kept(scene, tmp_path, capsys):
+    """Issue 27, findings 3 and 8: a submission.txt of the user's is not replaced (unless
+    --overwrite); the command's own outputs are; a failed run leaves no --out folder."""
+    out = tmp_path / "loc"
+    out.mkdir()
+    mine = out / "submission.txt"
+    mine.write_text("my own submission\n")
+    argv = ["--map", scene.model, "--images", scene.images, "--queries", scene.queries]
+    assert _localize(*argv, "--out", out) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "submission.txt" in err and "--overwrite" in err
+    assert mine.read_text() == "my own submission\n"
+    assert _localize(*argv, "--out", out, "--overwrite") == 0
+    assert mine.read_text() != "my own submission\n"
+    assert _localize(*argv, "--out", out) == 0  # its own output of the last run: replaced
+    capsys.readouterr()
+    bad = tmp_path / "bad.txt"
+    bad.write_text("q_0.jpg PINHOLE 320 240 300\n")
+    assert _localize(*argv, "--intrinsics", bad, "--out", tmp_path / "new") == 2
+    assert not (tmp_path / "new").exists()
