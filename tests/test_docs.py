@@ -1,0 +1,229 @@
+"""The user documentation stays true: its results tables are the committed runs', its links
+resolve, and the README stays short and free of lab-notebook details.
+
+- Drift: every ``<!-- BEGIN GENERATED: name -->`` block in README.md and ``docs/`` equals what
+  ``python -m experiments.docs_tables`` renders from ``experiments/results/`` now.
+- Links: every relative link and image in README.md and ``docs/`` names a file of the checkout,
+  and every ``#anchor`` a heading of its target (GitHub's heading slugs).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from experiments import docs_tables
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = docs_tables.doc_files(ROOT)
+
+
+def _metrics(mae: float, baselines: tuple[float, float, float], corr: float = 0.6,
+             dataset: str = "webcam_clipart") -> dict:
+    """A Sec. IV-A metrics.json with the fields the tables read."""
+    names = docs_tables.BASELINES
+    return {
+        "test_mae": mae,
+        "curve_corr": corr,
+        "baselines": {n: {"test_mae": b} for n, b in zip(names, baselines)},
+        "counts": {"test": 1000},
+        "dataset": {"name": dataset, "config": "synthetic"},
+        "provenance": {"command": "python -m experiments.webcam_clipart",
+                       "code": "git " + "a" * 40 + " + uncommitted changes"},
+        "run": {"finished_utc": "2030-01-01 00:00 UTC", "machine": "a CPU, 2 cores"},
+    }
+
+
+# ----------------------------------------------------------------------------- drift
+
+def test_every_generated_block_matches_the_committed_results():
+    stale = docs_tables.check(ROOT)
+    assert not stale, ("generated tables differ from experiments/results/ (run `python -m "
+                       "experiments.docs_tables`): " + ", ".join(stale))
+
+
+def test_the_docs_quote_the_generated_tables():
+    """The README's headline and the results pages are generated blocks, not typed copies."""
+    names = {m.group(1) for p in DOCS for m in docs_tables._BLOCK.finditer(p.read_text())}
+    assert {"sec4a_headline", "sec4a_webcam_clipart", "sec4a_cmu_seasons", "benchmark",
+            "map_summarization"} <= names, names
+    assert "sec4a_headline" in {m.group(1) for m in
+                                docs_tables._BLOCK.finditer((ROOT / "README.md").read_text())}
+
+
+def test_check_finds_an_edited_figure_and_update_restores_it(tmp_path):
+    (tmp_path / "docs").mkdir()
+    run = tmp_path / "experiments" / "results" / "sec4a" / "webcam_clipart_seed0"
+    run.mkdir(parents=True)
+    (run / "metrics.json").write_text(json.dumps(_metrics(0.10, (0.15, 0.14, 0.13))))
+    body = docs_tables.render_blocks(tmp_path)["sec4a_webcam_clipart"]
+    doc = tmp_path / "docs" / "r.md"
+    block = f"<!-- BEGIN GENERATED: sec4a_webcam_clipart -->\n{body}" \
+            "<!-- END GENERATED: sec4a_webcam_clipart -->\n"
+    (tmp_path / "README.md").write_text("# x\n")
+    doc.write_text("# r\n\n" + block)
+    assert docs_tables.check(tmp_path) == []
+    doc.write_text("# r\n\n" + block.replace("0.1000", "0.0990"))  # a figure typed by hand
+    assert docs_tables.check(tmp_path) == ["docs/r.md: sec4a_webcam_clipart"]
+    assert docs_tables.update(tmp_path) == [doc]
+    assert docs_tables.check(tmp_path) == [] and "0.1000" in doc.read_text()
+    doc.write_text("<!-- BEGIN GENERATED: nope -->\nx\n<!-- END GENERATED: nope -->\n")
+    with pytest.raises(ValueError, match="docs/r.md: generated block 'nope'"):
+        docs_tables.update(tmp_path)
+
+
+# ----------------------------------------------------------------------------- tables
+
+def test_seed_table_has_each_seed_and_the_spread():
+    runs = [(0, _metrics(0.10, (0.15, 0.14, 0.13))), (1, _metrics(0.16, (0.18, 0.17, 0.16))),
+            (2, _metrics(0.12, (0.15, 0.15, 0.15)))]
+    table = docs_tables.sec4a_seed_table(runs)
+    rows = [line for line in table.splitlines() if line.startswith("| ")]
+    assert len(rows) == 1 + 3 + 1  # header, a row per seed, mean ± sd
+    assert rows[1].startswith("| 0 (default, `make demo`) | **0.1000** |")
+    # RP against the best baseline of its own seed: (0.10 - 0.13) / 0.13, 0 %, -20 %.
+    assert "-23.1 %" in rows[1] and "+0.0 %" in rows[2] and "-20.0 %" in rows[3]
+    # mean 0.1267, sample sd 0.0306 of the three RP figures.
+    assert "0.1267 ± 0.0306" in rows[4] and "range -23.1 to +0.0 %" in rows[4]
+    assert "`python -m experiments.webcam_clipart`; 2030-01-01 00:00 UTC; a CPU, 2 cores; " \
+           "git aaaaaaaaaaaa + uncommitted changes" in table
+
+
+def test_headline_says_the_spread_and_the_default_seed():
+    runs = [(0, _metrics(0.10, (0.15, 0.14, 0.13))), (1, _metrics(0.16, (0.18, 0.17, 0.16)))]
+    table = docs_tables.sec4a_headline({"webcam_clipart": runs, "cmu_seasons": []})
+    assert "| Webcam Clip Art | 0, 1 | 0.1300 ± 0.0424 |" in table
+    assert "from -23.1 to +0.0 %" in table and "0.1000 vs 0.1300 (-23.1 %)" in table
+    assert "| Extended CMU Seasons | 0 | not committed |" in table
+
+
+def test_mean_sd():
+    assert docs_tables.mean_sd([1.0, 2.0, 3.0]) == (2.0, 1.0)
+    mean, sd = docs_tables.mean_sd([5.0])
+    assert mean == 5.0 and sd != sd  # one value has no spread
+
+
+def test_collect_stamps_the_run(tmp_path):
+    work = tmp_path / "run"
+    work.mkdir()
+    m = _metrics(0.1, (0.2, 0.2, 0.2))
+    del m["run"]
+    (work / "metrics.json").write_text(json.dumps(m))
+    out = docs_tables.collect(work, "webcam_clipart_seed3", root=tmp_path)
+    assert out == tmp_path / "experiments/results/sec4a/webcam_clipart_seed3/metrics.json"
+    stamped = json.loads(out.read_text())
+    assert stamped["test_mae"] == 0.1 and stamped["run"]["finished_utc"].endswith("UTC")
+    assert "cores" in stamped["run"]["machine"]
+    with pytest.raises(ValueError, match="a run of webcam_clipart, not of cmu_seasons_seed1"):
+        docs_tables.collect(work, "cmu_seasons_seed1", root=tmp_path)
+    with pytest.raises(ValueError, match="expected <webcam_clipart|cmu_seasons>_seed<N>"):
+        docs_tables.collect(work, "seed1", root=tmp_path)
+
+
+# ----------------------------------------------------------------------------- links
+
+def slug(heading: str) -> str:
+    """GitHub's anchor for a Markdown heading: lower case, punctuation dropped, spaces to -."""
+    text = re.sub(r"`|\*\*|\[|\]\([^)]*\)", "", heading.strip()).lower()
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+def anchors(path: Path) -> set[str]:
+    """Every heading anchor of a Markdown file (repeats get -1, -2 as on GitHub)."""
+    seen: dict[str, int] = {}
+    out = set()
+    in_code = False
+    for line in path.read_text().splitlines():
+        if line.startswith("```"):
+            in_code = not in_code
+        m = None if in_code else re.match(r"#{1,6} (.+)", line)
+        if m:
+            s = slug(m.group(1))
+            n = seen.get(s, 0)
+            seen[s] = n + 1
+            out.add(s if n == 0 else f"{s}-{n}")
+    out |= set(re.findall(r'<a (?:name|id)="([^"]+)"', path.read_text()))
+    return out
+
+
+def links(path: Path) -> list[str]:
+    """The targets of Markdown links and images, and of HTML src/href, outside code."""
+    text = re.sub(r"^```.*?^```", "", path.read_text(), flags=re.DOTALL | re.MULTILINE)
+    text = re.sub(r"`[^`\n]*`", "", text)
+    found = re.findall(r"\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)", text)
+    found += re.findall(r'(?:src|href)="([^"]+)"', text)
+    return found
+
+
+def test_slug_follows_github():
+    assert slug("Reproducing the paper") == "reproducing-the-paper"
+    assert slug("Sec. IV-A: `make demo`, over seeds") == "sec-iv-a-make-demo-over-seeds"
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_and_anchor_resolves(doc):
+    broken = []
+    for target in links(doc):
+        if re.match(r"[a-z]+:", target):  # https:, mailto: (not fetched: no network in tests)
+            continue
+        file, _, anchor = target.partition("#")
+        dest = (doc.parent / file).resolve() if file else doc
+        if not dest.exists():
+            broken.append(f"{target}: no such file")
+        elif anchor and dest.suffix == ".md" and anchor not in anchors(dest):
+            broken.append(f"{target}: no heading #{anchor} in {dest.relative_to(ROOT)}")
+    assert not broken, f"{doc.relative_to(ROOT)}: " + "; ".join(broken)
+
+
+# ----------------------------------------------------------------------------- the README
+
+def test_readme_is_short_and_speaks_of_the_tool_as_it_is():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 350
+    for must in ("make demo", "make test", "pip install -e .", "@inproceedings", "License"):
+        assert must in text, must
+    # Prose: the text outside generated blocks and code (an example's times are input).
+    prose = re.sub(r"<!-- BEGIN GENERATED: (\S+) -->.*?<!-- END GENERATED: \1 -->", "", text,
+                   flags=re.DOTALL)
+    prose = re.sub(r"^```.*?^```", "", prose, flags=re.DOTALL | re.MULTILINE)
+    prose = re.sub(r"`[^`\n]*`", "", prose)
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", prose), "a date in the README's prose"
+    assert not re.search(r"\bissue \d+|#\d+\b", prose), "an issue number in the README"
+    assert not re.search(r"\b[0-9a-f]{7,40}\b(?<![0-9]{7})", prose.replace("0x", "")), \
+        "a commit hash in the README"
+    assert "load average" not in prose
+
+
+@pytest.mark.slow
+def test_quick_start_runs_as_written(tmp_path):
+    """The README's quick start, as a user pastes it after the install: each ``$`` line runs
+    in a shell in an empty folder (``python`` is this interpreter) and prints the lines the
+    README shows, numbers aside; then its Python block runs."""
+    import os
+    import subprocess
+    import sys
+
+    from tests.test_readme_own_data import _masked, console_steps, section_blocks
+
+    blocks = section_blocks((ROOT / "README.md").read_text(), "## Quick start")
+    steps = [s for lang, body in blocks if lang == "console" for s in console_steps(body)]
+    assert any("rp_jax.keypoints" in c and "-synthetic" in c for c, _ in steps), steps
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    for command, expected in steps:
+        proc = subprocess.run(["bash", "-c", command], cwd=tmp_path, env=env, text=True,
+                              capture_output=True, timeout=300, check=False)
+        output = proc.stdout + proc.stderr
+        assert proc.returncode == 0, f"$ {command}\n{output}"
+        printed = [_masked(line) for line in output.splitlines()]
+        missing = [line for line in expected if line.strip() and _masked(line) not in printed]
+        assert not missing, f"$ {command}\nnot printed: {missing}\n--- it printed:\n{output}"
+    assert (tmp_path / "keypoints" / "rocket_repeatability.png").exists()
+    for lang, body in blocks:
+        if lang == "python":
+            scope: dict = {}
+            exec(compile(body, "README.md (Quick start)", "exec"), scope)  # noqa: S102
+            assert scope["scores"].shape == (4, len(scope["rp"].schedule.labels))
