@@ -3,7 +3,9 @@
 OpenCV/NumPy only (no jax): detection (``features``), 64x64x3 patches (``patches``),
 vectorised nearest-neighbour + ratio-test matching (``matching``), geometric verification
 (``verification``, ``triangulation``), the repeatability vector y^j and its mask
-(``labels``) and the cached, resumable per-viewpoint pipeline (``viewpoint``).
+(``labels``), the source images whose points become records (``sources``), streamed in
+blocks (``source_labels``, ``blocks``), and the cached, resumable per-viewpoint pipeline
+(``viewpoint``).
 """
 
 from rp_jax.groundtruth.config import GroundTruthConfig
@@ -14,9 +16,11 @@ from rp_jax.groundtruth.viewpoint import (
     TIME_FIELDS,
     attach_patches,
     label_viewpoint,
+    label_viewpoint_block,
     label_viewpoint_outcomes,
     label_viewpoints,
     load_records,
+    viewpoint_block_count,
 )
 
 __all__ = [
@@ -26,8 +30,10 @@ __all__ = [
     "GroundTruthConfig",
     "attach_patches",
     "label_viewpoint",
+    "label_viewpoint_block",
     "label_viewpoint_outcomes",
     "label_viewpoints",
     "load_records",
     "repeatability_labels",
+    "viewpoint_block_count",
 ]

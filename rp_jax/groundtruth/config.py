@@ -38,6 +38,12 @@ class GroundTruthConfig:
       magsac_confidence: RANSAC confidence.
       min_pair_matches: a pair with fewer ratio-test matches gets no robust fundamental
         matrix and no inliers (``"fundamental"`` mode only).
+      max_sources: how many *source* images of a viewpoint give records, each matched
+        against every image (``rp_jax.groundtruth.sources``): 0 (default) makes every
+        readable image a source, as all-pairs matching did; S > 0 keeps at most S,
+        spread over the timestamps and cycles, so a viewpoint of n images costs S x n
+        image pairs instead of n^2 (the builders take 84: ``builder.builder_configs``).
+        A source's labels are the same whichever other images are sources.
     """
 
     detector: str = "sift"
@@ -51,6 +57,7 @@ class GroundTruthConfig:
     magsac_threshold: float = 1.0
     magsac_confidence: float = 0.999
     min_pair_matches: int = 15
+    max_sources: int = 0
 
     def __post_init__(self):
         if self.verification not in VERIFICATION_MODES:
@@ -61,6 +68,8 @@ class GroundTruthConfig:
             raise ValueError(f"ratio must lie in (0, 1], got {self.ratio}")
         if self.max_keypoints < 1:
             raise ValueError(f"max_keypoints must be >= 1, got {self.max_keypoints}")
+        if self.max_sources < 0:
+            raise ValueError(f"max_sources must be >= 0 (0 = every image), got {self.max_sources}")
 
     def feature_tag(self) -> str:
         """Name of the per-image feature cache: detector and cap, e.g. ``sift-n1000``."""
@@ -68,8 +77,11 @@ class GroundTruthConfig:
 
     def tag(self, num_timestamps: int) -> str:
         """Name of the per-viewpoint label cache: readable prefix + hash of every field."""
-        blob = json.dumps(
-            {**dataclasses.asdict(self), "num_timestamps": num_timestamps}, sort_keys=True
-        )
+        fields = dataclasses.asdict(self)
+        # Not in the tag: a source's labels do not depend on it, and a cached viewpoint
+        # names its sources (``viewpoint._same_sources`` checks them), so caches written
+        # before the field existed, with every image a source, stay valid.
+        del fields["max_sources"]
+        blob = json.dumps({**fields, "num_timestamps": num_timestamps}, sort_keys=True)
         digest = hashlib.sha1(blob.encode()).hexdigest()[:10]
         return f"{self.feature_tag()}-{self.verification}-T{num_timestamps}-{digest}"

@@ -29,6 +29,7 @@ __all__ = [
     "OUTCOME_MISS",
     "OUTCOME_UNKNOWN",
     "images_per_timestamp",
+    "labels_from_counts",
     "pair_outcomes",
     "repeatability_from_outcomes",
     "repeatability_labels",
@@ -82,9 +83,30 @@ def repeatability_labels(
     onehot = np.zeros((slots.shape[0], num_timestamps), np.float64)
     onehot[np.arange(slots.shape[0]), slots] = 1.0
     counts = hits.astype(np.float64) @ onehot  # [N, T] inliers per timestamp
-    has_images = m > 0
+    return labels_from_counts(counts, m)
+
+
+def labels_from_counts(counts: np.ndarray, images: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """y^j = inliers at t_j / sum_k m_{k,j}, and its mask, from the counts (Fig. 4).
+
+    The one place the division is written: ``repeatability_labels`` (one point against
+    every image at once) and ``rp_jax.groundtruth.source_labels`` (the counts gathered
+    image by image) both end here, so their labels are the same numbers.
+
+    Args:
+      counts: [N, T] inliers of each point per timestamp (its own image included), whole
+        numbers of any dtype.
+      images: int [T] ``images_per_timestamp``.
+
+    Returns:
+      ``(label float32 [N, T], label_mask bool [N, T])``; a timestamp with no image has
+      label 0 and mask False.
+    """
+    counts = np.asarray(counts, np.float64)
+    images = np.asarray(images, np.int64)
+    has_images = images > 0
     label = np.zeros(counts.shape, np.float32)
-    label[:, has_images] = (counts[:, has_images] / m[has_images]).astype(np.float32)
+    label[:, has_images] = (counts[:, has_images] / images[has_images]).astype(np.float32)
     mask = np.broadcast_to(has_images, counts.shape).copy()
     return label, mask
 

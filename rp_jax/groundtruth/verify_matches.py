@@ -19,7 +19,13 @@ from rp_jax.groundtruth.config import GroundTruthConfig
 from rp_jax.sources.capture import Capture
 from rp_jax.sources.layout import mixed_sizes_message
 
-__all__ = ["check_one_size", "intrinsics_of", "resolve_mode", "verify_matches"]
+__all__ = [
+    "check_one_size",
+    "intrinsics_of",
+    "resolve_mode",
+    "verify_matches",
+    "verify_pair",
+]
 
 # Camera centres closer than this (relative to their distance from the origin) are "the same".
 _SAME_CENTRE = 1e-9
@@ -140,32 +146,52 @@ def verify_matches(
             cand = np.flatnonzero(matches.ratio_ok[a][:, b])
             if cand.size == 0:
                 continue
-            x1 = xys[a][cand]
-            x2 = xys[b][matches.nn[a][cand, b]]
-            if mode == "static":
-                ok = verification.static_inliers(x1, x2, config.static_pixel_threshold)
-            elif mode in ("fundamental", "sfm"):
-                ok = verification.robust_fundamental_inliers(
-                    x1,
-                    x2,
-                    threshold=config.magsac_threshold,
-                    confidence=config.magsac_confidence,
-                    min_matches=config.min_pair_matches,
-                )
-            elif mode == "pose":
-                ok = np.ones(len(cand), bool)
-            else:
-                raise ValueError(f"unknown verification mode {mode!r}")
-            if mode in ("pose", "sfm") and ok.any():
-                ok[ok] = _pose_consistent(
-                    intrinsics[a],
-                    *pose_of(a),
-                    intrinsics[b],
-                    *pose_of(b),
-                    x1[ok],
-                    x2[ok],
-                    config,
-                )
-            ok_a[cand, b] = ok
+            ok_a[cand, b] = verify_pair(
+                xys[a][cand],
+                xys[b][matches.nn[a][cand, b]],
+                mode=mode,
+                config=config,
+                camera_a=None if intrinsics is None else (intrinsics[a], *pose_of(a)),
+                camera_b=None if intrinsics is None else (intrinsics[b], *pose_of(b)),
+            )
         inliers.append(ok_a)
     return inliers
+
+
+def verify_pair(
+    x1: np.ndarray,
+    x2: np.ndarray,
+    *,
+    mode: str,
+    config: GroundTruthConfig,
+    camera_a: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    camera_b: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """Steps 3-4 of Sec. III-D for the ratio-test matches of one ordered image pair (a, b).
+
+    Args:
+      x1, x2: [M, 2] pixel positions of each match in image a and in image b.
+      mode: ``"static"``, ``"pose"``, ``"fundamental"`` or ``"sfm"``.
+      config: thresholds.
+      camera_a, camera_b: ``(K, R, t)`` of each image (``"pose"`` and ``"sfm"`` modes).
+
+    Returns:
+      bool [M]: the match is an inlier correspondence.
+    """
+    if mode == "static":
+        ok = verification.static_inliers(x1, x2, config.static_pixel_threshold)
+    elif mode in ("fundamental", "sfm"):
+        ok = verification.robust_fundamental_inliers(
+            x1,
+            x2,
+            threshold=config.magsac_threshold,
+            confidence=config.magsac_confidence,
+            min_matches=config.min_pair_matches,
+        )
+    elif mode == "pose":
+        ok = np.ones(len(x1), bool)
+    else:
+        raise ValueError(f"unknown verification mode {mode!r}")
+    if mode in ("pose", "sfm") and ok.any():
+        ok[ok] = _pose_consistent(*camera_a, *camera_b, x1[ok], x2[ok], config)
+    return ok

@@ -38,17 +38,20 @@ check (no SfM), a faster approximation.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import logging
 import multiprocessing as mp
+import shutil
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from rp_jax import worker_processes
-from rp_jax.groundtruth import cache, matching, patches, sfm
+from rp_jax.groundtruth import blocks, cache, matching, patches, sfm
 from rp_jax.groundtruth import features as features_lib
 from rp_jax.groundtruth import labels as labels_lib
+from rp_jax.groundtruth import sources as sources_lib
 from rp_jax.groundtruth.config import GroundTruthConfig
 from rp_jax.groundtruth.image_features import (
     LoadCategory,
@@ -58,9 +61,7 @@ from rp_jax.groundtruth.image_features import (
 )
 from rp_jax.groundtruth.verify_matches import (
     CameraOf,
-    check_one_size,
     intrinsics_of,
-    resolve_mode,
     verify_matches,
 )
 from rp_jax.sources.capture import Capture
@@ -72,15 +73,17 @@ __all__ = [
     "attach_patches",
     "image_features",
     "label_viewpoint",
+    "label_viewpoint_block",
     "label_viewpoint_outcomes",
     "label_viewpoints",
     "load_records",
+    "viewpoint_block_count",
 ]
 
 logger = logging.getLogger(__name__)
 
 # Column order of the ``time`` record field (the capture's local wall clock).
-TIME_FIELDS = ("year", "month", "day", "hour", "minute", "utc_offset_minutes")
+TIME_FIELDS = blocks.TIME_FIELDS
 RECORD_KEYS = (
     "patch",
     "xy",
@@ -172,31 +175,8 @@ def attach_patches(
 # ----------------------------------------------------------------------------- records
 
 
-def _time_fields(capture: Capture) -> np.ndarray:
-    t = capture.time
-    offset = t.utcoffset()
-    return np.array(
-        [t.year, t.month, t.day, t.hour, t.minute, int(offset.total_seconds() // 60)], np.int32
-    )
-
-
-def _empty_records(num_timestamps: int, desc_width: int) -> dict[str, np.ndarray]:
-    """No rows, every column but ``patch`` (``attach_patches`` adds it)."""
-    return {
-        "xy": np.zeros((0, 2), np.float32),
-        "xy_normalized": np.zeros((0, 2), np.float32),
-        "image_size": np.zeros((0, 2), np.int32),
-        "label": np.zeros((0, num_timestamps), np.float32),
-        "label_mask": np.zeros((0, num_timestamps), bool),
-        "category": np.zeros(0, np.int32),
-        "descriptor": np.zeros((0, desc_width), np.float32),
-        "time": np.zeros((0, len(TIME_FIELDS)), np.int32),
-        "cycle": np.zeros(0, np.int32),
-        "slot": np.zeros(0, np.int32),
-        "viewpoint": np.zeros(0, "<U1"),
-        "image_id": np.zeros(0, "<U1"),
-        "keypoint_id": np.zeros(0, np.int32),
-    }
+_time_fields = blocks.time_fields
+_empty_records = blocks.empty_records
 
 
 def _check_captures(captures: Sequence[Capture], num_timestamps: int) -> str:
@@ -232,8 +212,13 @@ def label_viewpoint(
     progress: bool = False,
     matching_threads: int = 2,
     with_patches: bool = True,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
 ) -> dict[str, np.ndarray]:
     """Keypoint records with repeatability labels for one viewpoint (Sec. III-D).
+
+    The records are those of the viewpoint's source images (``config.max_sources``; every
+    readable image by default), each matched against every image, block by block
+    (``rp_jax.groundtruth.blocks``).
 
     Args:
       captures: the images of one viewpoint, ``cycle`` and ``slot`` assigned.
@@ -252,9 +237,12 @@ def label_viewpoint(
         (does not change the result).
       with_patches: cut the ``patch`` column from the images (one more read of each);
         False leaves it out, e.g. to select records first and then ``attach_patches``.
+      sources_per_block: sources labelled together (with ``cache_dir``, each finished
+        block is cached, so a killed run resumes at the next block); no effect on the
+        records.
 
     Returns:
-      dict of arrays, one row per interest point of every readable image (``RECORD_KEYS``):
+      dict of arrays, one row per interest point of every source image (``RECORD_KEYS``):
       ``patch`` uint8 [N,64,64,3], ``xy`` float32 [N,2], ``xy_normalized`` float32 [N,2]
       (x/W, y/H), ``image_size`` int32 [N,2] (W, H), ``label`` float32 [N,T],
       ``label_mask`` bool [N,T], ``category`` int32 [N] (-1 unknown), ``descriptor``
@@ -272,6 +260,7 @@ def label_viewpoint(
         progress=progress,
         matching_threads=matching_threads,
         want_outcomes=False,
+        sources_per_block=sources_per_block,
     )
     return attach_patches(records, captures, load_image) if with_patches else records
 
@@ -287,6 +276,7 @@ def label_viewpoint_outcomes(
     load_category: LoadCategory | None = None,
     progress: bool = False,
     matching_threads: int = 2,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The records of ``label_viewpoint`` (no ``patch``) and the per-image-pair outcomes.
 
@@ -310,6 +300,7 @@ def label_viewpoint_outcomes(
         progress=progress,
         matching_threads=matching_threads,
         want_outcomes=True,
+        sources_per_block=sources_per_block,
     )
 
 
@@ -325,9 +316,9 @@ def _label(
     progress: bool,
     matching_threads: int,
     want_outcomes: bool,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None]:
     """Records without patches and, computed (or read) when ``want_outcomes``, outcomes."""
-    from rp_jax.progress import bar as tqdm  # the one progress helper
 
     config = GroundTruthConfig() if config is None else config
     viewpoint = _check_captures(captures, num_timestamps)
@@ -336,6 +327,8 @@ def _label(
     if cache_dir is not None:
         out_path = cache.labels_path(cache_dir, config, num_timestamps, viewpoint)
         records = cache.read_labels(out_path, fingerprint)
+        if records is not None and not _same_sources(out_path, captures, config):
+            records = None
         if records is not None and not want_outcomes:
             return records, None
         if records is not None:
@@ -343,132 +336,195 @@ def _label(
             if outcomes is not None:
                 return records, outcomes
 
-    def features_of(c: Capture) -> dict[str, np.ndarray] | None:
-        return image_features(
-            c, load_image=load_image, config=config, cache_dir=cache_dir,
-            load_category=load_category,
-        )
-
-    # Images in parallel threads too (OpenCV releases the GIL; each image is its own job).
-    with cf.ThreadPoolExecutor(max(1, matching_threads)) as pool:
-        found = list(tqdm(pool.map(features_of, captures), total=len(captures),
-                          desc=f"features {viewpoint}", disable=not progress, leave=False))
-    feats = [f for f in found if f is not None]
-    readable = [c for c, f in zip(captures, found) if f is not None]
-    num_unreadable = len(captures) - len(readable)
-    if num_unreadable:
-        logger.warning(
-            "viewpoint %s: %d of %d images unreadable, skipped",
-            viewpoint,
-            num_unreadable,
-            len(captures),
-        )
-
+    index = blocks.index_viewpoint(
+        captures, load_image=load_image, config=config, cache_dir=cache_dir,
+        camera_of=camera_of, load_category=load_category, threads=matching_threads,
+        progress=progress,
+    )
     width, _ = features_lib.descriptor_size(config.detector)
     sfm_registered = None
-    readable_ids = {c.image_id for c in readable}
-    columns = np.array([i for i, c in enumerate(captures) if c.image_id in readable_ids],
-                       np.int64)
     outcome_rows: list[np.ndarray] = []
-    if not readable:
+    if not index.readable:
         records = _empty_records(num_timestamps, width)
+    elif index.mode == "sfm":
+        records, outcome_rows, sfm_registered = _label_all_pairs(
+            index, num_timestamps=num_timestamps, config=config, camera_of=camera_of,
+            threads=matching_threads, progress=progress)
     else:
-        mode = resolve_mode(config, readable)
-        if mode == "static":
-            check_one_size(viewpoint, readable, [f["image_size"] for f in feats])
-        norm = features_lib.descriptor_norm(config.detector)
-        descs = [matching.prepare_descriptors(f["descriptor"], norm) for f in feats]
-        matches = matching.match_all_pairs(
-            descs, ratio=config.ratio, norm=norm, threads=matching_threads, progress=progress
-        )
-        xys = [f["xy"] for f in feats]
-        intrinsics, poses = None, None
-        if mode in ("pose", "sfm"):
-            intrinsics = [
-                intrinsics_of(c, camera_of, f["image_size"]) for c, f in zip(readable, feats)
-            ]
-        if mode == "sfm":
-            poses = sfm.reconstruct_viewpoint(
-                [c.image_id for c in readable],
-                [tuple(f["image_size"]) for f in feats],
-                intrinsics,
-                xys,
-                matches,
-                min_pair_matches=config.min_pair_matches,
-            )
-            sfm_registered = poses is not None
-        if mode == "sfm" and poses is None:
-            # The paper keeps only viewpoints whose images all register: none of its points.
-            logger.warning(
-                "viewpoint %s: SfM did not register all %d images; dropped",
-                viewpoint,
-                len(readable),
-            )
-            records = _empty_records(num_timestamps, width)
-        else:
-            inliers = verify_matches(
-                readable,
-                xys,
-                matches,
-                mode=mode,
-                config=config,
-                intrinsics=intrinsics,
-                poses=poses,
-                progress=progress,
-            )
-            slots = np.array([c.slot for c in readable], np.int64)
-            records = _assemble(readable, feats, inliers, slots, num_timestamps, width)
-            outcome_rows = [
-                labels_lib.pair_outcomes(inliers[i], i, columns, len(captures))
-                for i, f in enumerate(feats)
-                if len(f["xy"])
-            ]
-    outcomes = _assemble_outcomes(captures, columns, records, outcome_rows)
+        parts = []
+        for block in sources_lib.source_blocks(len(index.sources), sources_per_block):
+            part, rows = blocks.block_records(
+                index, block, num_timestamps=num_timestamps, config=config,
+                cache_dir=cache_dir, fingerprint=fingerprint, threads=matching_threads,
+                progress=progress, want_outcomes=want_outcomes)
+            parts.append(part)
+            if rows is not None:
+                outcome_rows.append(rows)
+        records = blocks.concat_rows(parts, num_timestamps, width)
+    outcomes = None
+    if want_outcomes or index.mode == "sfm":
+        outcomes = _assemble_outcomes(captures, index.columns, records, outcome_rows)
 
     if out_path is not None:
         meta = {
             "viewpoint": viewpoint,
             "num_images": len(captures),
-            "num_readable": len(readable),
-            "num_unreadable": num_unreadable,
+            "num_readable": len(index.readable),
+            "num_unreadable": len(captures) - len(index.readable),
+            "num_sources": int(len(index.sources)),
+            "sources": [str(index.readable[i].image_id) for i in index.sources],
             "num_interest_points": int(records["xy"].shape[0]),
-            "unreadable": sorted({c.image_id for c in captures} - {c.image_id for c in readable}),
+            "unreadable": sorted({c.image_id for c in captures}
+                                 - {c.image_id for c in index.readable}),
             "sfm_registered": sfm_registered,
             "fingerprint": fingerprint,
             "config": config.tag(num_timestamps),
         }
         cache.write_labels(out_path, records, meta)
-        cache.write_outcomes(cache.outcomes_path(out_path), outcomes, fingerprint)
+        if outcomes is not None:
+            cache.write_outcomes(cache.outcomes_path(out_path), outcomes, fingerprint)
+        # The viewpoint's file holds every block now: the blocks' files are not needed.
+        shutil.rmtree(out_path.with_suffix(".blocks"), ignore_errors=True)
     return records, outcomes if want_outcomes else None
 
 
-def _assemble(readable, feats, inliers, slots, num_timestamps, width) -> dict[str, np.ndarray]:
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in RECORD_KEYS if k != "patch"}
-    for i, (c, f) in enumerate(zip(readable, feats)):
-        n = len(f["xy"])
-        if n == 0:
-            continue
-        label, mask = labels_lib.repeatability_labels(inliers[i], slots, i, num_timestamps)
-        size = f["image_size"].astype(np.int32)
-        xy = f["xy"].astype(np.float32)
-        parts["xy"].append(xy)
-        parts["xy_normalized"].append(
-            np.clip(xy / size.astype(np.float32)[None, :], 0.0, 1.0).astype(np.float32)
+def _label_all_pairs(index, *, num_timestamps, config, camera_of, threads, progress):
+    """``"sfm"`` mode: COLMAP reconstructs the viewpoint from the matches of every image
+    pair (Sec. III-D step 4), so every pair is matched; the records are the sources'.
+
+    Returns:
+      ``(records, outcome_rows, registered)``.
+    """
+    readable = index.readable
+    feats = [index.features[b] if index.features is not None else
+             index.source_features(c) for b, c in enumerate(readable)]
+    width, _ = features_lib.descriptor_size(config.detector)
+    descs = [matching.prepare_descriptors(f["descriptor"], index.norm) for f in feats]
+    matches = matching.match_all_pairs(
+        descs, ratio=config.ratio, norm=index.norm, threads=threads, progress=progress
+    )
+    xys = [f["xy"] for f in feats]
+    intrinsics = [intrinsics_of(c, camera_of, f["image_size"]) for c, f in zip(readable, feats)]
+    poses = sfm.reconstruct_viewpoint(
+        [c.image_id for c in readable],
+        [tuple(f["image_size"]) for f in feats],
+        intrinsics,
+        xys,
+        matches,
+        min_pair_matches=config.min_pair_matches,
+    )
+    if poses is None:
+        # The paper keeps only viewpoints whose images all register: none of its points.
+        logger.warning(
+            "viewpoint %s: SfM did not register all %d images; dropped",
+            index.viewpoint,
+            len(readable),
         )
-        parts["image_size"].append(np.tile(size, (n, 1)))
-        parts["label"].append(label)
-        parts["label_mask"].append(mask)
-        parts["category"].append(f["category"].astype(np.int32))
-        parts["descriptor"].append(f["descriptor"].astype(np.float32))
-        parts["time"].append(np.tile(_time_fields(c), (n, 1)))
-        parts["cycle"].append(np.full(n, c.cycle, np.int32))
-        parts["slot"].append(np.full(n, c.slot, np.int32))
-        parts["viewpoint"].append(np.full(n, str(c.viewpoint)))
-        parts["image_id"].append(np.full(n, str(c.image_id)))
-        parts["keypoint_id"].append(np.arange(n, dtype=np.int32))
-    if not parts["xy"]:
+        return _empty_records(num_timestamps, width), [], False
+    inliers = verify_matches(readable, xys, matches, mode="sfm", config=config,
+                             intrinsics=intrinsics, poses=poses, progress=progress)
+    sources = [int(i) for i in index.sources]
+    records = _assemble([readable[i] for i in sources], [feats[i] for i in sources],
+                        [inliers[i] for i in sources], index.slots, num_timestamps, width,
+                        own=sources)
+    outcome_rows = [
+        labels_lib.pair_outcomes(inliers[i], i, index.columns, len(index.captures))
+        for i in sources
+        if len(feats[i]["xy"])
+    ]
+    return records, outcome_rows, True
+
+
+def _same_sources(path: Path, captures: Sequence[Capture], config: GroundTruthConfig) -> bool:
+    """The viewpoint cached at ``path`` was labelled from the sources ``config`` chooses now
+    (a cache written before sources were named labelled every readable image)."""
+    meta = json.loads(path.with_suffix(".json").read_text())
+    unreadable = set(meta.get("unreadable", []))
+    readable = [c for c in captures if c.image_id not in unreadable]
+    chosen = sources_lib.choose_sources([c.cycle for c in readable], [c.slot for c in readable],
+                                        config.max_sources)
+    stored = meta.get("sources", [str(c.image_id) for c in readable])
+    return [str(readable[i].image_id) for i in chosen] == list(stored)
+
+
+def viewpoint_block_count(
+    num_images: int, config: GroundTruthConfig,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
+) -> int:
+    """How many blocks ``label_viewpoint_block`` may be asked for: those of a viewpoint of
+    ``num_images`` images all readable (an unreadable image can only leave the last ones
+    empty); one for the ``"sfm"`` mode, which labels the whole viewpoint at once."""
+    if config.verification == "sfm":
+        return 1
+    sources = num_images if config.max_sources == 0 else min(num_images, config.max_sources)
+    return len(sources_lib.source_blocks(sources, sources_per_block))
+
+
+def label_viewpoint_block(
+    captures: Sequence[Capture],
+    block: int,
+    *,
+    load_image: LoadImage,
+    num_timestamps: int,
+    config: GroundTruthConfig | None = None,
+    cache_dir: str | Path | None = None,
+    camera_of: CameraOf | None = None,
+    load_category: LoadCategory | None = None,
+    matching_threads: int = 2,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
+) -> dict[str, np.ndarray]:
+    """The records (no ``patch``) of block ``block`` of a viewpoint's sources: the unit of
+    parallel work (``blocks``); the blocks 0, 1, ... concatenated are ``label_viewpoint``'s
+    records.
+
+    Arguments as ``label_viewpoint``. Pure given its inputs, so blocks run in any process
+    or Beam worker; with ``cache_dir`` a finished block is read back (resume). Run
+    ``blocks.cache_features`` over the viewpoint's images first when blocks run in
+    parallel (else each block detects every image). In the ``"sfm"`` mode (a
+    reconstruction from every pair) block 0 holds the whole viewpoint.
+    """
+    config = GroundTruthConfig() if config is None else config
+    viewpoint = _check_captures(captures, num_timestamps)
+    width, _ = features_lib.descriptor_size(config.detector)
+    fingerprint = cache.fingerprint(captures, load_category is not None)
+    index = blocks.index_viewpoint(
+        captures, load_image=load_image, config=config, cache_dir=cache_dir,
+        camera_of=camera_of, load_category=load_category, threads=matching_threads,
+    )
+    whole = index.mode == "sfm"
+    parts = [range(0, len(index.sources))] if whole else sources_lib.source_blocks(
+        len(index.sources), sources_per_block)
+    if block >= len(parts) or not index.readable:
         return _empty_records(num_timestamps, width)
-    return {k: np.concatenate(v) for k, v in parts.items()}
+    if cache_dir is not None:  # a finished viewpoint: its rows of the block's images
+        done_path = cache.labels_path(cache_dir, config, num_timestamps, viewpoint)
+        done = cache.read_labels(done_path, fingerprint)
+        if done is not None and _same_sources(done_path, captures, config):
+            ids = {str(index.readable[i].image_id) for i in index.sources[parts[block].start:
+                                                                          parts[block].stop]}
+            keep = np.isin(np.asarray(done["image_id"]).astype(str), list(ids))
+            return {k: np.asarray(v)[keep] for k, v in done.items()}
+    if whole:
+        return _label(captures, load_image=load_image, num_timestamps=num_timestamps,
+                      config=config, cache_dir=cache_dir, camera_of=camera_of,
+                      load_category=load_category, progress=False,
+                      matching_threads=matching_threads, want_outcomes=False)[0]
+    return blocks.block_records(
+        index, parts[block], num_timestamps=num_timestamps, config=config,
+        cache_dir=cache_dir, fingerprint=fingerprint, threads=matching_threads)[0]
+
+
+def _assemble(readable, feats, inliers, slots, num_timestamps, width, own=None):
+    """Records of ``readable`` images from their all-pairs inliers (``own``: each image's
+    column among ``slots``; default its position)."""
+    own = list(range(len(readable))) if own is None else own
+    parts = []
+    for c, f, ok, i in zip(readable, feats, inliers, own):
+        if len(f["xy"]) == 0:
+            continue
+        label, mask = labels_lib.repeatability_labels(ok, slots, i, num_timestamps)
+        parts.append(blocks.image_rows(c, f, label, mask))
+    return blocks.concat_rows(parts, num_timestamps, width)
 
 
 def _assemble_outcomes(captures, columns, records, outcome_rows) -> dict[str, np.ndarray]:
@@ -512,6 +568,35 @@ def _label_one(viewpoint_id, captures, kwargs, select, with_patches: bool):
     return viewpoint_id, records
 
 
+def _features_job(captures, kwargs) -> int:
+    """Cache the features of some images of a viewpoint (before its blocks run)."""
+    return blocks.cache_features(
+        captures, load_image=kwargs["load_image"], config=kwargs["config"] or
+        GroundTruthConfig(), cache_dir=kwargs["cache_dir"], load_category=kwargs["load_category"])
+
+
+def _block_job(viewpoint_id, captures, block, kwargs, select, with_patches: bool):
+    """One block of a viewpoint's sources: label, select, cut the kept rows' patches."""
+    records = label_viewpoint_block(captures, block, **kwargs)
+    if select is not None:
+        records = select(records)  # per image (the builders' select_records): block-local
+    if with_patches:
+        records = attach_patches(records, captures, kwargs["load_image"])
+    return viewpoint_id, block, records
+
+
+def _concat_blocks(parts: Sequence[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The blocks' records in block order (each block's rows in source order)."""
+    full = [p for p in parts if len(p["xy"])]
+    if not full:
+        return dict(parts[0])
+    return {k: np.concatenate([p[k] for p in full]) for k in full[0]}
+
+
+# Images per feature job of ``label_viewpoints``' first phase: a few seconds of detection.
+FEATURE_JOB_IMAGES = 32
+
+
 def label_viewpoints(
     viewpoints: Mapping[str, Sequence[Capture]],
     *,
@@ -524,18 +609,28 @@ def label_viewpoints(
     workers: int = 2,
     select: Callable[[dict[str, np.ndarray]], dict[str, np.ndarray]] | None = None,
     with_patches: bool = True,
+    sources_per_block: int = sources_lib.DEFAULT_BLOCK_SIZE,
 ) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
     """Label many viewpoints, in parallel processes, yielding as each finishes.
+
+    With a ``cache_dir`` and ``workers > 1`` the unit of work is a block of a viewpoint's
+    source images (``label_viewpoint_block``), so one large viewpoint is spread over every
+    worker: first the features of every image are detected and cached (jobs of
+    ``FEATURE_JOB_IMAGES`` images), then the blocks run; a viewpoint is yielded once its
+    blocks are all done, its records those of ``label_viewpoint``. Without a cache folder a
+    viewpoint is one job (its features cannot be shared between processes).
 
     Args:
       viewpoints: viewpoint id -> its captures.
       load_image, num_timestamps, config, cache_dir, camera_of, load_category: as in
         ``label_viewpoint``; the callables must be picklable when ``workers > 1``.
       workers: processes (1: run in this process).
-      select: optional ``records -> records`` keeping some rows (e.g. the builders'
-        ``select_records``), applied in the worker before patches are cut, so only the
-        kept rows' patches are cut and sent back; picklable when ``workers > 1``.
+      select: optional ``records -> records`` keeping some rows of each image (e.g. the
+        builders' ``select_records``), applied in the worker before patches are cut, so
+        only the kept rows' patches are cut and sent back; picklable when ``workers > 1``.
+        It must decide image by image (blocks hold whole images).
       with_patches: cut the ``patch`` column (see ``label_viewpoint``).
+      sources_per_block: see ``label_viewpoint``.
 
     Yields:
       ``(viewpoint_id, records)`` in completion order.
@@ -552,29 +647,75 @@ def label_viewpoints(
     }
     bar = tqdm(total=len(viewpoints), desc="viewpoints", unit="viewpoint")
     try:
-        if workers <= 1 or len(viewpoints) <= 1:
+        if workers <= 1:
             for vp, caps in viewpoints.items():
-                yield _label_one(vp, list(caps), kwargs, select, with_patches)
+                yield _label_one(vp, list(caps), {**kwargs, "sources_per_block":
+                                                  sources_per_block}, select, with_patches)
                 bar.update(1)
             return
-        # Cores are shared by the processes: one thread each, except for the last
-        # workers - 1 viewpoints, which mostly run while other workers have nothing left to
-        # do (7 viewpoints on 2 workers: the 7th ran alone on one of 2 cores).
-        last = len(viewpoints) - (workers - 1)
         # Spawned, not forked: callers (experiments, notebooks) often have JAX's threads
         # running already, and forking a multithreaded process can deadlock.
         spawn = mp.get_context("spawn")
         # Workers exit with this process: a killed build must not leave them labelling.
         with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn,
                                     initializer=worker_processes.exit_with_parent) as pool:
-            futures = {
-                pool.submit(_label_one, vp, list(caps),
-                            {**kwargs, "matching_threads": workers if k >= last else 1},
-                            select, with_patches): vp
-                for k, (vp, caps) in enumerate(viewpoints.items())
-            }
-            for fut in cf.as_completed(futures):
-                yield fut.result()
-                bar.update(1)
+            if cache_dir is None:
+                yield from _by_viewpoint(pool, viewpoints, kwargs, workers, select,
+                                         with_patches, sources_per_block, bar)
+            else:
+                yield from _by_block(pool, viewpoints, kwargs, workers, select,
+                                     with_patches, sources_per_block, bar)
     finally:
         bar.close()
+
+
+def _by_viewpoint(pool, viewpoints, kwargs, workers, select, with_patches, per_block, bar):
+    """One job per viewpoint (no shared feature cache)."""
+    # Cores are shared by the processes: one thread each, except for the last
+    # workers - 1 viewpoints, which mostly run while other workers have nothing left to
+    # do (7 viewpoints on 2 workers: the 7th ran alone on one of 2 cores).
+    last = len(viewpoints) - (workers - 1)
+    futures = {
+        pool.submit(_label_one, vp, list(caps),
+                    {**kwargs, "matching_threads": workers if k >= last else 1,
+                     "sources_per_block": per_block},
+                    select, with_patches): vp
+        for k, (vp, caps) in enumerate(viewpoints.items())
+    }
+    for fut in cf.as_completed(futures):
+        yield fut.result()
+        bar.update(1)
+
+
+def _by_block(pool, viewpoints, kwargs, workers, select, with_patches, per_block, bar):
+    """Features of every image first, then one job per (viewpoint, block of sources)."""
+    feature_jobs = [
+        pool.submit(_features_job, list(caps)[s:s + FEATURE_JOB_IMAGES], kwargs)
+        for caps in viewpoints.values()
+        for s in range(0, len(caps), FEATURE_JOB_IMAGES)
+    ]
+    for fut in cf.as_completed(feature_jobs):
+        fut.result()  # a failure stops the build here, naming its image
+    config = kwargs["config"] or GroundTruthConfig()
+    planned = {vp: viewpoint_block_count(len(caps), config, per_block)
+               for vp, caps in viewpoints.items()}
+    jobs = [(vp, k) for vp in viewpoints for k in range(planned[vp])]
+    last = len(jobs) - (workers - 1)  # as _by_viewpoint: the tail gets every core
+    futures = [
+        pool.submit(_block_job, vp, list(viewpoints[vp]), k,
+                    {**kwargs, "matching_threads": workers if i >= last else 1,
+                     "sources_per_block": per_block},
+                    select, with_patches)
+        for i, (vp, k) in enumerate(jobs)
+    ]
+    done: dict[str, dict[int, dict]] = {vp: {} for vp in viewpoints}
+    for fut in cf.as_completed(futures):
+        vp, k, records = fut.result()
+        done[vp][k] = records
+        if len(done[vp]) == planned[vp]:
+            yield vp, _concat_blocks([done[vp].pop(i) for i in range(planned[vp])])
+            bar.update(1)
+    for vp, n in planned.items():  # a viewpoint of no block at all (no image)
+        if n == 0:
+            yield vp, _label_one(vp, list(viewpoints[vp]), kwargs, select, with_patches)[1]
+            bar.update(1)
