@@ -106,7 +106,7 @@ def test_localize_does_not_import_mapsum():
 LAYERS = {
     "foundations": ("rp_jax", "rp_jax.schedule", "rp_jax.time_encoding", "rp_jax.model",
                     "rp_jax.losses", "rp_jax.categories", "rp_jax.rotations", "rp_jax.platform",
-                    "rp_jax.files", "rp_jax.sun", "rp_jax.plots", "rp_jax.bf16",
+                    "rp_jax.files", "rp_jax.sun", "rp_jax.plots", "rp_jax.page", "rp_jax.bf16",
                     "rp_jax.worker_processes",
                     "rp_jax.progress", "rp_jax.command_line", "rp_jax.distributed"),
     "data": ("rp_jax.sources",),

@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rp_jax import command_line
+from rp_jax import command_line, page
 from rp_jax.commands import InputError, datetime_flag, load_predictor, run_command
 from rp_jax.keypoints import (
     DEFAULT_MAX_KEYPOINTS,
@@ -51,6 +51,7 @@ def run(
     max_keypoints: int = DEFAULT_MAX_KEYPOINTS,
     overlay: bool = True,
     predictor=None,
+    html: str | os.PathLike | None = None,
 ) -> list[dict]:
     """The command's work: every image's ``.npz`` (and overlay PNG) in ``out``.
 
@@ -65,6 +66,8 @@ def run(
       max_keypoints: SIFT keypoints per image.
       overlay: also write the PNGs.
       predictor: an already loaded ``Predictor``.
+      html: also write the one image's page, scrubbing its keypoints through the cycle
+        (``rp_jax.page``).
 
     Returns:
       One dict per image: image, npz, png, keypoints, captured, at, mean score.
@@ -80,6 +83,13 @@ def run(
         if not p.is_file():
             raise InputError(f"{p}: no such image file")
     stems = _output_stems(paths)
+    if html is not None:  # checked before any work: one image, and no file of the user's there
+        if len(paths) != 1:
+            raise InputError(f"--html {html}: a page shows one IMAGE, got {len(paths)}")
+        try:
+            page.check_page_path(html)
+        except page.PageExistsError as err:
+            raise InputError(f"--html {err}") from err
     times = CaptureTimes(captured, hint="give --captured TIME")
     whens = [times(p) for p in paths]  # every capture time is known before any work
     names = hloc.NameIndex(hloc.list_names(features)) if features is not None else None
@@ -109,6 +119,10 @@ def run(
         png = write_overlay(rgb, kp, out / f"{stem}_repeatability.png",
                             title=f"{path.name}: {len(kp)} keypoints, captured "
                             f"{kp.captured:%Y-%m-%d %H:%M}") if overlay else None
+        if html is not None:
+            page.write_keypoints_page(html, rgb, kp, predictor.schedule,
+                                      model=Path(model).name if model else "",
+                                      title=f"{path.name}: {len(kp)} keypoints")
         results.append({
             "image": str(path), "npz": str(npz), "png": None if png is None else str(png),
             "keypoints": len(kp), "captured": kp.captured, "at": kp.at,
@@ -145,6 +159,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-keypoints", type=int, default=DEFAULT_MAX_KEYPOINTS, metavar="N",
                    help=f"SIFT keeps the N strongest keypoints (default {DEFAULT_MAX_KEYPOINTS})")
     p.add_argument("--no-overlay", action="store_true", help="write the .npz files only")
+    p.add_argument("--html", metavar="PAGE",
+                   help="also write PAGE (.html, one IMAGE): a self-contained page, offline, "
+                   "with a slider over the model's cycle that re-colours the keypoints and "
+                   "each clicked keypoint's repeatability curve (docs/page.md)")
     return p
 
 
@@ -161,13 +179,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     def body() -> int:
         results = run(args.images, args.predictor, args.out, captured=args.captured, at=args.at,
                       features=args.features, max_keypoints=args.max_keypoints,
-                      overlay=not args.no_overlay)
+                      overlay=not args.no_overlay, html=args.html)
         for r in results:
             png = f" and {Path(r['png']).name}" if r["png"] else ""
             captured, at = (f"{r[k]:%Y-%m-%d %H:%M}" for k in ("captured", "at"))
             print(f"{r['image']}: {r['keypoints']} keypoints, captured {captured}, mean "
                   f"repeatability {r['mean_score']:.3f} at {at} -> {Path(r['npz']).name}{png}")
-        print(f"wrote {len(results)} image(s) to {args.out}")
+        print(f"wrote {len(results)} image(s) to {args.out}"
+              + (f" and the page {args.html}" if args.html else ""))
         return 0
 
     return run_command(PROG, body)

@@ -83,6 +83,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="SIFT keypoints re-detected per database image (default 4000)")
     s.add_argument("--seed", type=int, default=0,
                    help="seed of k-means, --method random and VLAD (default 0)")
+    s.add_argument("--html", metavar="PAGE",
+                   help="also write PAGE (.html, --method rp): a self-contained page, offline, "
+                   "of the map seen from above with a slider over the predictor's timestamps "
+                   "showing which points the summary keeps at each, and each clicked point's "
+                   "repeatability curve (docs/page.md)")
     command_line.add_quiet(s)
     return p
 
@@ -108,6 +113,16 @@ def _summarize(args) -> int:
     elif args.all_slots:
         raise InputError(f"--all-slots summarizes per timestamp of the predictor; --method "
                          f"{args.method} does not depend on time")
+    if args.html is not None:  # checked before any work
+        from rp_jax import page
+
+        if args.method != "rp":
+            raise InputError(f"--html shows the summary at each timestamp: it needs --method "
+                             f"rp, not {args.method}")
+        try:
+            page.check_page_path(args.html)
+        except page.PageExistsError as err:
+            raise InputError(f"--html {err}") from err
     if args.partition == "grid" and not args.cell_size:
         raise InputError("--partition grid needs --cell-size (in the model's units)")
     if args.method == "rp":
@@ -126,6 +141,14 @@ def _summarize(args) -> int:
         if isinstance(err, INPUT_ERRORS):
             raise
         raise InputError(str(err)) from err
+    if args.html is not None:
+        from rp_jax.mapsum.summary_page import summary_page
+
+        page.write_page(args.html, summary_page(
+            args.model, args.out, predictor.schedule, ratio=args.ratio,
+            partition_method=args.partition, parts=args.parts, cell_size=args.cell_size,
+            seed=args.seed, at=args.at, predictor_name=Path(args.predictor).name))
+        print(f"wrote the page {args.html}")
     for r in records:
         when = f" slot {r['slot']}" if "slot" in r else (
             f" at {r['at']:%Y-%m-%d %H:%M}" if r.get("at") else "")
