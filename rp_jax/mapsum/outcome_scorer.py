@@ -1,0 +1,377 @@
+"""A point scorer trained on localization outcomes (issue 26, beyond the paper).
+
+The paper summarizes a map by each point's predicted repeatability at the query time
+(Sec. V-A), learnt from re-detection between images of fixed viewpoints (Sec. III-D). What
+the summary must keep is narrower: points that, on the query's day, pass "the ratio test"
+against every candidate the retrieved images see and end up PnP-RANSAC inliers (Sec. V-B).
+This scorer learns that outcome directly from the labels of
+``rp_jax.mapsum.localization_outcomes`` (training slices only): for a map point and a query
+time, the probability that the point is a PnP inlier of a correct pose, given that the
+retrieved images see it.
+
+Inputs, all known to a server that holds the map and is told the query's time:
+
+* of the **point** (``point_features``): the RP's repeatability vector (the paper's
+  predictor on its reference observations' 64x64 patches, Sec. V-A-1, averaged over the
+  observations) with its mean and spread over the cycle; the mean image position of its
+  observations; its track length; depth and viewing-angle spread of its observations; its
+  height; how far its observations' descriptors spread around its mean descriptor; its
+  descriptor's competition among the map points (``distinctiveness_weights``, global) and
+  among the points the same database images see (``self_matching``: the ratio test that
+  2D-3D matching applies, played with the map's own observations as queries); its semantic
+  class where the layout has one;
+* of the **query** (``query_features``): time of day and day of year (cyclic), the sun's
+  elevation and azimuth at the map's place, and the day's weather where it is known.
+
+``OutcomeScorer`` is a small MLP on both (``time_aware=True``); its **time-agnostic twin**
+(``time_aware=False``) reads the point's features only, so its output cannot depend on the
+query (the same labels train both). Features are standardized with the training pairs'
+mean and spread (``Standardizer``). ``train_step`` is one pure optax step on a batch of
+(point, query) pairs gathered from the feature tables inside the jitted step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+from collections.abc import Mapping, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from flax.training import train_state
+
+from rp_jax import categories
+from rp_jax.mapsum.kcover import distinctiveness_weights
+from rp_jax.sources.colmap_model import MapPoints
+
+__all__ = [
+    "QUERY_FEATURES",
+    "OutcomeScorer",
+    "Standardizer",
+    "bce_loss",
+    "create_train_state",
+    "point_feature_names",
+    "point_features",
+    "query_features",
+    "score_points",
+    "self_matching",
+    "train_step",
+]
+
+SIFT_NORM = 512.0  # OpenCV SIFT descriptors are scaled to norm ~512
+# Category slots of the one-hot: the six known categories and "unknown".
+_CATEGORY_IDS = sorted(categories.NAMES)
+
+
+def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
+                  point_descriptors: np.ndarray, ratio: float = 0.8,
+                  chunk: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+    """How each point fares in 2D-3D matching against the points its images see.
+
+    Sec. V-B matches a query keypoint to the candidate points (those the retrieved images
+    see) by the nearest mean descriptor and the ratio test. Here every observation of the
+    map (with a descriptor) plays the query keypoint and the points its own database image
+    sees play the candidates: a point whose observations find it, and not a neighbour, by
+    a clear ratio is one the ratio test lets through.
+
+    Args:
+      map_points: the map.
+      obs_descriptors: [n_obs, D] descriptor of each observation (NaN rows: none).
+      point_descriptors: [P, D] mean descriptor of each point (NaN rows: none).
+      ratio: Lowe's ratio of the matching.
+      chunk: observation rows per distance block.
+
+    Returns:
+      ([P] share of the point's described observations whose nearest point is the point
+      itself and passes the ratio test, [P] mean over them of d(own) / d(nearest other point)
+      clipped to [0, 2]); NaN for a point without a described observation.
+    """
+    obs = np.asarray(obs_descriptors, np.float32)
+    pts = np.asarray(point_descriptors, np.float32)
+    n_obs, n_pts = map_points.num_observations, map_points.num_points
+    if obs.shape[0] != n_obs or pts.shape[0] != n_pts:
+        raise ValueError(f"expected [{n_obs}, D] observation and [{n_pts}, D] point descriptors")
+    found = np.full(n_obs, np.nan)
+    margin = np.full(n_obs, np.nan)
+    has_obs = np.all(np.isfinite(obs), axis=1)
+    has_pt = np.all(np.isfinite(pts), axis=1)
+    for rows in map_points.rows_by_image().values():
+        seen = np.unique(map_points.obs_point[rows])
+        seen = seen[has_pt[seen]]
+        rows = rows[has_obs[rows] & has_pt[map_points.obs_point[rows]]]
+        if len(seen) < 2 or len(rows) == 0:
+            continue
+        cand = pts[seen].astype(np.float64)
+        c_sq = (cand * cand).sum(1)
+        own_col = np.searchsorted(seen, map_points.obs_point[rows])
+        for s in range(0, len(rows), chunk):
+            r = rows[s:s + chunk]
+            q = obs[r].astype(np.float64)
+            d2 = np.maximum((q * q).sum(1)[:, None] + c_sq[None] - 2.0 * q @ cand.T, 0.0)
+            d = np.sqrt(d2)
+            own = own_col[s:s + chunk]
+            idx = np.arange(len(r))
+            d_own = d[idx, own].copy()
+            d[idx, own] = np.inf
+            d_other = d.min(1)
+            # The ratio test keeps the own point when it is nearest by a clear margin: the
+            # second nearest is then the nearest other point.
+            found[r] = d_own < ratio * d_other
+            with np.errstate(divide="ignore", invalid="ignore"):
+                margin[r] = np.clip(np.where(d_other > 0, d_own / d_other, 2.0), 0.0, 2.0)
+    share = np.full(n_pts, np.nan)
+    mean_margin = np.full(n_pts, np.nan)
+    ok = np.isfinite(found)
+    counts = np.bincount(map_points.obs_point[ok], minlength=n_pts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.bincount(map_points.obs_point[ok], weights=found[ok], minlength=n_pts) / counts
+        mean_margin = np.bincount(map_points.obs_point[ok], weights=margin[ok],
+                                  minlength=n_pts) / counts
+    share[counts == 0] = np.nan
+    mean_margin[counts == 0] = np.nan
+    return share, mean_margin
+
+
+def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
+    """Names of ``point_features``' columns for RP vectors of the given lengths."""
+    names = []
+    for k, t in repeatability.items():
+        names += [f"rp_{k}_{j}" for j in range(t)] + [f"rp_{k}_mean", f"rp_{k}_spread"]
+    names += ["image_x", "image_y", "log_track_length", "log_depth", "view_angle_spread",
+              "height", "descriptor_spread", "described_share", "distinctiveness",
+              "self_match_share", "self_match_margin"]
+    names += [f"category_{categories.NAMES[c]}" for c in _CATEGORY_IDS] + ["category_unknown"]
+    return names
+
+
+def point_features(
+    map_points: MapPoints,
+    *,
+    camera_centres: Mapping[int, np.ndarray],
+    image_sizes: Mapping[int, tuple[int, int]],
+    obs_descriptors: np.ndarray,
+    point_descriptors: np.ndarray,
+    repeatability: Mapping[str, np.ndarray],
+    point_category: np.ndarray | None = None,
+    up_axis: int = 2,
+    ratio: float = 0.8,
+) -> np.ndarray:
+    """[P, F] float32 features of every map point (columns: ``point_feature_names``).
+
+    Args:
+      map_points: the map (its reference model).
+      camera_centres: database image id -> [3] camera centre in the map's frame.
+      image_sizes: database image id -> (width, height).
+      obs_descriptors: [n_obs, 128] SIFT descriptor per observation (NaN rows: none).
+      point_descriptors: [P, 128] mean descriptor per point (NaN rows: none).
+      repeatability: name -> [P, T] the point's RP vector (``point_repeatability``).
+      point_category: [P] semantic class (``point_categories``; -1 or None: unknown).
+      up_axis: world axis pointing up (-1: unknown; the height is then 0).
+      ratio: Lowe's ratio of localization's 2D-3D matching (``self_matching``).
+
+    Missing values (a point without a described observation) are 0; the share of described
+    observations says how much the descriptor features can be trusted.
+    """
+    n = map_points.num_points
+    mp = map_points
+    cols = []
+    for rep in repeatability.values():
+        rep = np.asarray(rep, np.float64)
+        if rep.shape[0] != n:
+            raise ValueError(f"repeatability has {rep.shape[0]} rows for {n} points")
+        cols += [rep, rep.mean(1, keepdims=True), rep.std(1, keepdims=True)]
+    ids = mp.obs_image_id
+    size = np.array([image_sizes[int(i)] for i in ids], np.float64).reshape(-1, 2)
+    centre = np.array([camera_centres[int(i)] for i in ids], np.float64).reshape(-1, 3)
+    count = np.maximum(mp.track_length, 1).astype(np.float64)
+
+    def mean(values):
+        return np.bincount(mp.obs_point, weights=values, minlength=n) / count
+
+    xy = mp.obs_xy / np.maximum(size, 1.0)
+    ray = mp.xyz[mp.obs_point] - centre
+    depth = np.linalg.norm(ray, axis=1)
+    unit = ray / np.maximum(depth, 1e-9)[:, None]
+    mean_dir = np.stack([mean(unit[:, k]) for k in range(3)], 1)
+    mean_dir /= np.maximum(np.linalg.norm(mean_dir, axis=1), 1e-9)[:, None]
+    cos = np.clip((unit * mean_dir[mp.obs_point]).sum(1), -1.0, 1.0)
+    spread = np.zeros(n)
+    np.maximum.at(spread, mp.obs_point, np.degrees(np.arccos(cos)))
+    if up_axis in (0, 1, 2):
+        centres = np.array(list(camera_centres.values()), np.float64).reshape(-1, 3)
+        height = mp.xyz[:, up_axis] - np.median(centres[:, up_axis])
+    else:
+        height = np.zeros(n)
+    obs = np.asarray(obs_descriptors, np.float64)
+    pts = np.asarray(point_descriptors, np.float64)
+    described = np.all(np.isfinite(obs), axis=1)
+    dev = np.where(described,
+                   np.linalg.norm(np.nan_to_num(obs) - np.nan_to_num(pts[mp.obs_point]), axis=1),
+                   0.0)
+    n_desc = np.bincount(mp.obs_point, weights=described.astype(float), minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        desc_spread = np.where(n_desc > 0, np.bincount(mp.obs_point, weights=dev, minlength=n)
+                               / np.maximum(n_desc, 1) / SIFT_NORM, 0.0)
+    share, margin = self_matching(mp, obs_descriptors, point_descriptors, ratio=ratio)
+    has_pt = np.all(np.isfinite(pts), axis=1)
+    distinct = np.zeros(n)
+    if has_pt.sum() >= 2:
+        distinct[has_pt] = distinctiveness_weights(pts[has_pt])
+    cat = (np.full(n, categories.UNKNOWN) if point_category is None
+           else np.asarray(point_category, np.int64))
+    onehot = np.stack([cat == c for c in _CATEGORY_IDS] + [~np.isin(cat, _CATEGORY_IDS)], 1)
+    cols += [
+        mean(xy[:, 0])[:, None], mean(xy[:, 1])[:, None],
+        np.log(count)[:, None], np.log(np.maximum(mean(depth), 1e-3))[:, None],
+        (spread / 90.0)[:, None], height[:, None], desc_spread[:, None],
+        (n_desc / count)[:, None], distinct[:, None],
+        np.nan_to_num(share)[:, None], np.nan_to_num(margin, nan=2.0)[:, None],
+        onehot.astype(np.float64),
+    ]
+    out = np.concatenate(cols, axis=1)
+    return np.nan_to_num(out).astype(np.float32)
+
+
+QUERY_FEATURES = (
+    "time_of_day_cos", "time_of_day_sin", "day_of_year_cos", "day_of_year_sin",
+    "sun_elevation", "sun_azimuth_cos", "sun_azimuth_sin",
+    "cloud_cover", "precipitation", "snow_cover", "weather_known",
+)
+
+
+def query_features(times: Sequence[dt.datetime], place: tuple[float, float] | None = None,
+                   weather: Sequence[Mapping | None] | None = None) -> np.ndarray:
+    """[Q, len(QUERY_FEATURES)] float32 features of each query's time and conditions.
+
+    Args:
+      times: tz-aware capture times (local time of day and date as the clock shows them).
+      place: (latitude, longitude) of the map, for the sun (None: the sun columns are 0).
+      weather: per query, its day's weather record (``cloud_cover``, ``precipitation``,
+        ``snow_cover`` in [0, 1]) or None where unknown (its columns 0, ``weather_known`` 0).
+    """
+    from rp_jax import sun
+
+    q = len(times)
+    out = np.zeros((q, len(QUERY_FEATURES)), np.float64)
+    if q == 0:
+        return out.astype(np.float32)
+    day = np.array([(t.hour * 60 + t.minute) / 1440.0 for t in times])
+    year = np.array([(t.timetuple().tm_yday - 1) / 365.25 for t in times])
+    out[:, 0], out[:, 1] = np.cos(2 * np.pi * day), np.sin(2 * np.pi * day)
+    out[:, 2], out[:, 3] = np.cos(2 * np.pi * year), np.sin(2 * np.pi * year)
+    if place is not None:
+        elev, azim = sun.solar_position(np.array([t.timestamp() for t in times]), *place)
+        out[:, 4] = elev / 90.0
+        out[:, 5], out[:, 6] = np.cos(np.radians(azim)), np.sin(np.radians(azim))
+    for i, w in enumerate(weather or [None] * q):
+        if w is None:
+            continue
+        vals = [w.get(k) for k in ("cloud_cover", "precipitation", "snow_cover")]
+        if all(v is not None and np.isfinite(v) for v in vals):
+            out[i, 7:10] = vals
+            out[i, 10] = 1.0
+    return out.astype(np.float32)
+
+
+@dataclasses.dataclass(frozen=True)
+class Standardizer:
+    """Per-column mean and spread of the training inputs (columns of spread 0 stay 0)."""
+
+    mean: np.ndarray
+    scale: np.ndarray
+
+    @classmethod
+    def fit(cls, x: np.ndarray) -> Standardizer:
+        x = np.asarray(x, np.float64)
+        sd = x.std(0)
+        return cls(x.mean(0).astype(np.float32),
+                   np.where(sd > 1e-8, sd, 1.0).astype(np.float32))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return ((np.asarray(x, np.float32) - self.mean) / self.scale).astype(np.float32)
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean.tolist(), "scale": self.scale.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> Standardizer:
+        return cls(np.asarray(d["mean"], np.float32), np.asarray(d["scale"], np.float32))
+
+
+class OutcomeScorer(nn.Module):
+    """MLP: logit of P(PnP inlier of a correct pose | point [, query]).
+
+    ``apply(params, point [B, F], query [B, G]) -> [B]`` logits; ``time_aware=False`` is
+    the time-agnostic twin.
+    """
+
+    hidden: int = 64
+    depth: int = 2
+    time_aware: bool = True
+
+    @nn.compact
+    def __call__(self, point, query):
+        # The twin never reads the query: its output is the same at every time.
+        x = jnp.concatenate([point, query], -1) if self.time_aware else point
+        for _ in range(self.depth):
+            x = nn.gelu(nn.Dense(self.hidden)(x))
+        return nn.Dense(1)(x)[..., 0]
+
+
+def bce_loss(logits, labels):
+    """Mean binary cross-entropy of logits against 0/1 labels."""
+    return optax.sigmoid_binary_cross_entropy(logits, labels).mean()
+
+
+def create_train_state(net, num_point_features: int, num_query_features: int, *,
+                       learning_rate: float = 3e-3, weight_decay: float = 1e-4,
+                       total_steps: int = 1000, seed: int = 0):
+    """A flax ``TrainState`` of ``net`` with AdamW on a cosine schedule."""
+    params = net.init(jax.random.key(seed), jnp.zeros((1, num_point_features)),
+                      jnp.zeros((1, num_query_features)))
+    tx = optax.adamw(optax.cosine_decay_schedule(learning_rate, max(total_steps, 1)),
+                     weight_decay=weight_decay)
+    return train_state.TrainState.create(apply_fn=net.apply, params=params, tx=tx)
+
+
+def train_step(state, point_table, query_table, point_idx, query_idx, labels):
+    """One pure optax step on the pairs (point_table[point_idx], query_table[query_idx]).
+
+    Tables stay whole (small: one row per map point and per query); the batch gathers its
+    rows inside the step. Returns (state, {"loss": BCE before the step}).
+    """
+    def loss_fn(params):
+        logits = state.apply_fn(params, point_table[point_idx], query_table[query_idx])
+        return bce_loss(logits, labels)
+
+    loss, grads = jax.value_and_grad(loss_fn)(state.params)
+    return state.apply_gradients(grads=grads), {"loss": loss}
+
+
+def score_points(net, params, point_table: np.ndarray, query_row: np.ndarray,
+                 chunk: int = 65536) -> np.ndarray:
+    """[P] probability that each point is a correct-pose inlier at one query's conditions.
+
+    Args:
+      net, params: an ``OutcomeScorer`` and its parameters.
+      point_table: [P, F] standardized point features.
+      query_row: [G] standardized query features (ignored by the twin).
+    """
+    apply = _compiled_apply(net)
+    p = len(point_table)
+    q = jnp.broadcast_to(jnp.asarray(query_row, jnp.float32), (min(chunk, max(p, 1)),
+                                                                len(query_row)))
+    out = []
+    for s in range(0, p, chunk):
+        part = jnp.asarray(point_table[s:s + chunk], jnp.float32)
+        out.append(np.asarray(jax.nn.sigmoid(apply(params, part, q[:len(part)]))))
+    return np.concatenate(out).astype(np.float64) if out else np.zeros(0)
+
+
+@functools.cache
+def _compiled_apply(net):
+    return jax.jit(net.apply)
