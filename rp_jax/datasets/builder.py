@@ -2,21 +2,27 @@
 
 A builder reads a layout with its ``rp_jax.sources`` reader, groups the captures by
 viewpoint, splits the viewpoints as ``data_specs/<name>.json`` says, and has
-``rp_jax.groundtruth.label_viewpoint`` label each viewpoint (one viewpoint is the unit of
-work, cached under ``<download_dir>/groundtruth/<name>/<config>/`` so an interrupted build
-resumes). It writes one record per interest point (``features``) as array_record; no
-TensorFlow is needed to write or read (``builder.as_data_source(split)``).
+``rp_jax.groundtruth`` label each viewpoint: the points of at most
+``sources_per_viewpoint`` source images (84 by default), each matched against every image
+of its viewpoint, so a viewpoint of n images costs 84 x n image pairs
+(``rp_jax.groundtruth.sources``). The unit of work is a block of a viewpoint's source
+images (``BlockJob``), after the features of every image are detected and cached
+(``FeatureJob``); both are cached under ``<download_dir>/groundtruth/<name>/<config>/``, so
+an interrupted build resumes at the blocks it had not finished. It writes one record per
+interest point (``features``) as array_record; no TensorFlow is needed to write or read
+(``builder.as_data_source(split)``).
 
 Configs: ``synthetic`` (default; renders the synthetic world at full size into
 ``<data_dir>/../synthetic/<name>`` when absent, then labels it), ``synthetic_small``,
 ``synthetic_tiny`` (tests, quick runs) and ``real`` (reads ``manual_dir``).
 
-Scaling out: ``label_viewpoint_examples(job)`` is a pure, picklable function of one
-``ViewpointJob``; under Apache Beam (``python -m rp_jax.datasets build ...
---beam-pipeline-options=...``, or ``DownloadConfig(beam_options=...)``) the builder maps it
-with ``beam.Create(jobs) | beam.Reshuffle() | beam.FlatMap(label_viewpoint_examples)``.
-TFDS orders the records by key either way, so both builds hold the same records in the
-same order (tests/datasets/test_beam.py).
+Scaling out: ``cache_job_features(FeatureJob)`` and ``label_block_examples(BlockJob)`` are
+pure, picklable functions; under Apache Beam (``python -m rp_jax.datasets build ...
+--beam-pipeline-options=...``, or ``DownloadConfig(beam_options=...)``) the builder maps
+the first over every viewpoint's images and, once all features are cached (a side input
+waits for them), the second over every (viewpoint, block of sources), so one large viewpoint
+is spread over all workers. TFDS orders the records by key either way, so both builds hold
+the same records in the same order (tests/datasets/test_beam.py).
 """
 
 from __future__ import annotations
@@ -44,8 +50,12 @@ from rp_jax.groundtruth import (
     GroundTruthConfig,
     attach_patches,
     label_viewpoint,
+    label_viewpoint_block,
     label_viewpoints,
+    viewpoint_block_count,
 )
+from rp_jax.groundtruth.blocks import cache_features
+from rp_jax.groundtruth.viewpoint import FEATURE_JOB_IMAGES
 from rp_jax.schedule import preset
 from rp_jax.sources.capture import Capture
 from rp_jax.sources.layout import LayoutError
@@ -53,11 +63,18 @@ from rp_jax.sources.layout import LayoutError
 __all__ = [
     "CONFIG_NAMES",
     "DATASET_NAMES",
+    "DEFAULT_SOURCES_PER_VIEWPOINT",
+    "BlockJob",
+    "FeatureJob",
     "RepeatabilityBuilder",
     "RepeatabilityConfig",
     "ViewpointJob",
     "beam_pipeline_options",
+    "block_jobs",
     "builder_configs",
+    "cache_job_features",
+    "feature_jobs",
+    "label_block_examples",
     "label_viewpoint_examples",
     "synthetic_root",
     "viewpoint_jobs",
@@ -86,6 +103,9 @@ class RepeatabilityConfig(tfds.core.BuilderConfig):
         random choice; 0 = all). Matching against every keypoint keeps the labels right,
         while the dataset stays near the paper's size (72,160 training points from 7
         Webcam Clip Art viewpoints, about 120 per image).
+      sources_per_viewpoint: how many images of a viewpoint give records (source images,
+        spread over its timestamps and cycles, each matched against every image;
+        ``GroundTruthConfig.max_sources``); 0 = every image (all pairs, n^2).
     """
 
     source: str = "synthetic"
@@ -93,14 +113,26 @@ class RepeatabilityConfig(tfds.core.BuilderConfig):
     seed: int = 0
     max_keypoints: int = 1000
     records_per_image: int = 0
+    sources_per_viewpoint: int = 0
 
 
-def builder_configs(records_per_image: int = 120) -> list[RepeatabilityConfig]:
+# The paper's Webcam Clip Art viewpoint gives records from M = 4 days x T = 21 timestamps =
+# 84 images (Sec. IV-A-1; 72,160 training points from 7 viewpoints: about 120 per image),
+# while a real viewpoint holds about 10,000 images: 84 source images keep the records at
+# the paper's number whatever a viewpoint's size, and make its cost linear in it. Every
+# synthetic viewpoint has at most 84 images, so all of them are sources there.
+DEFAULT_SOURCES_PER_VIEWPOINT = 84
+
+
+def builder_configs(records_per_image: int = 120,
+                    sources_per_viewpoint: int = DEFAULT_SOURCES_PER_VIEWPOINT,
+                    ) -> list[RepeatabilityConfig]:
     """The four configs every builder offers, ``synthetic`` first (the default).
 
     ``records_per_image`` (synthetic full/small and real) keeps a dataset near the paper's
     size: 120 for Webcam Clip Art (72,160 training points from 7 viewpoints), 32 for
     Extended CMU Seasons (45,870 + 15,856 points from about 1,900 images).
+    ``sources_per_viewpoint`` (every config): ``DEFAULT_SOURCES_PER_VIEWPOINT``.
     """
     return [
         RepeatabilityConfig(
@@ -108,6 +140,7 @@ def builder_configs(records_per_image: int = 120) -> list[RepeatabilityConfig]:
             source="synthetic",
             size="full",
             records_per_image=records_per_image,
+            sources_per_viewpoint=sources_per_viewpoint,
             description="The synthetic world at the paper's scale (rendered if absent).",
         ),
         RepeatabilityConfig(
@@ -116,6 +149,7 @@ def builder_configs(records_per_image: int = 120) -> list[RepeatabilityConfig]:
             size="small",
             max_keypoints=500,
             records_per_image=records_per_image,
+            sources_per_viewpoint=sources_per_viewpoint,
             description="A smaller synthetic world for a quick look (minutes).",
         ),
         RepeatabilityConfig(
@@ -123,12 +157,14 @@ def builder_configs(records_per_image: int = 120) -> list[RepeatabilityConfig]:
             source="synthetic",
             size="tiny",
             max_keypoints=150,
+            sources_per_viewpoint=sources_per_viewpoint,
             description="A tiny synthetic world for tests (seconds).",
         ),
         RepeatabilityConfig(
             name="real",
             source="real",
             records_per_image=records_per_image,
+            sources_per_viewpoint=sources_per_viewpoint,
             description="The real dataset, downloaded by hand into manual_dir.",
         ),
     ]
@@ -205,6 +241,63 @@ def label_viewpoint_examples(job: ViewpointJob) -> list[tuple[str, dict]]:
     records = label_viewpoint(list(job.captures), **kwargs, with_patches=False)
     records = select_records(records, job.records_per_image, job.seed)
     records = attach_patches(records, job.captures, kwargs["load_image"])
+    return list(features_lib.records_to_examples(records))
+
+
+@dataclasses.dataclass(frozen=True)
+class FeatureJob:
+    """Detect and cache the features of images ``start:stop`` of a viewpoint (picklable)."""
+
+    job: ViewpointJob
+    start: int
+    stop: int
+
+
+@dataclasses.dataclass(frozen=True)
+class BlockJob:
+    """Label block ``block`` of a viewpoint's source images (picklable; Beam, processes)."""
+
+    job: ViewpointJob
+    block: int
+
+
+def feature_jobs(jobs: Sequence[ViewpointJob]) -> list[FeatureJob]:
+    """The ``FeatureJob`` s of every viewpoint, ``FEATURE_JOB_IMAGES`` images each."""
+    return [FeatureJob(j, s, min(len(j.captures), s + FEATURE_JOB_IMAGES))
+            for j in jobs for s in range(0, len(j.captures), FEATURE_JOB_IMAGES)]
+
+
+def block_jobs(jobs: Sequence[ViewpointJob]) -> list[BlockJob]:
+    """The ``BlockJob`` s of every viewpoint (``groundtruth.viewpoint_block_count``)."""
+    return [BlockJob(j, k) for j in jobs
+            for k in range(viewpoint_block_count(len(j.captures), j.config))]
+
+
+def cache_job_features(job: FeatureJob) -> int:
+    """Detect and cache a ``FeatureJob`` 's features (pure; Beam-mappable); returns how many
+    images were readable."""
+    kwargs = job.job.label_kwargs()
+    if kwargs["cache_dir"] is None:
+        return 0  # nothing to share: each block detects what it needs
+    return cache_features(
+        job.job.captures[job.start:job.stop], load_image=kwargs["load_image"],
+        config=kwargs["config"], cache_dir=kwargs["cache_dir"],
+        load_category=kwargs["load_category"])
+
+
+def label_block_examples(job: BlockJob, features_done: int = 0) -> list[tuple[str, dict]]:
+    """``(key, example)`` of the selected interest points of one block of a viewpoint's
+    source images (pure; Beam-mappable). The blocks of a viewpoint together give the
+    examples of ``label_viewpoint_examples``: the selection is per image.
+
+    ``features_done``: ignored; the Beam pipeline passes the feature jobs' total as a side
+    input so that no block starts before every image's features are cached.
+    """
+    kwargs = job.job.label_kwargs()
+    captures = list(job.job.captures)
+    records = label_viewpoint_block(captures, job.block, **kwargs)
+    records = select_records(records, job.job.records_per_image, job.job.seed)
+    records = attach_patches(records, captures, kwargs["load_image"])
     return list(features_lib.records_to_examples(records))
 
 
@@ -482,7 +575,8 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
             )
         splits = dataset.splits(cfg.source, {c.viewpoint for c in captures},
                                 found=dataset.layout_viewpoints(root))
-        gt_config = dataset.ground_truth(cfg.max_keypoints)
+        gt_config = dataclasses.replace(dataset.ground_truth(cfg.max_keypoints),
+                                        max_sources=cfg.sources_per_viewpoint)
         cache = self.cache_dir(dl_manager)
         log.info("%s/%s: %s", self.DATASET, cfg.name, {s: len(v) for s, v in splits.items()})
         return {
@@ -493,11 +587,7 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
 
     def _generate_examples(self, jobs: Sequence[ViewpointJob]):
         if self._use_beam:
-            beam = tfds.core.lazy_imports.apache_beam
-            # Reshuffle: else a runner fuses the labelling into Create, and the one worker
-            # that made the list labels every viewpoint.
-            return (beam.Create(list(jobs)) | beam.Reshuffle()
-                    | beam.FlatMap(label_viewpoint_examples))
+            return _beam_labelling(jobs)
         return self._generate_locally(jobs)
 
     def _generate_locally(self, jobs: Sequence[ViewpointJob]):
@@ -512,3 +602,33 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
             by_viewpoint, workers=self._workers, select=select, **kwargs
         ):
             yield from features_lib.records_to_examples(records)
+
+
+def _beam_labelling(jobs: Sequence[ViewpointJob]):
+    """The Beam transform of a split: every image's features, then every block of sources.
+
+    Reshuffle after each Create: else a runner fuses the work into Create, and the one
+    worker that made the list does all of it. The blocks take the feature jobs' total as a
+    side input, which a runner computes before the step that reads it, so no block detects
+    an image that a feature job is still detecting.
+    """
+    beam = tfds.core.lazy_imports.apache_beam
+
+    class _Labelling(beam.PTransform):
+        def expand(self, root):
+            features = (
+                root
+                | "feature jobs" >> beam.Create(feature_jobs(jobs))
+                | "spread feature jobs" >> beam.Reshuffle()
+                | "detect" >> beam.Map(cache_job_features)
+                | "all features" >> beam.CombineGlobally(sum)
+            )
+            return (
+                root
+                | "block jobs" >> beam.Create(block_jobs(jobs))
+                | "spread block jobs" >> beam.Reshuffle()
+                | "label blocks" >> beam.FlatMap(
+                    label_block_examples, features_done=beam.pvalue.AsSingleton(features))
+            )
+
+    return _Labelling()

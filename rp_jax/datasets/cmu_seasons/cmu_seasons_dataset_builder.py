@@ -19,8 +19,15 @@ class Builder(builder.RepeatabilityBuilder):
 
     DATASET = "cmu_seasons"
     BUILDER_CONFIGS = builder.builder_configs(records_per_image=32)
-    VERSION = tfds.core.Version("1.4.0")
+    VERSION = tfds.core.Version("1.5.0")
     RELEASE_NOTES: ClassVar[dict[str, str]] = {
+        "1.5.0": "A viewpoint's records come from at most 84 source images (the paper's M = 4 days"
+        " x T = 21 timestamps), spread over its timestamps and cycles and each matched "
+        "against every image of the viewpoint, so labelling costs 84 x n image pairs "
+        "instead of n^2; a source's labels are those all-pairs matching gives it. "
+        "Viewpoints of more than 84 images (real downloads) keep fewer records than "
+        "before; every synthetic viewpoint has at most 84 images, so its records are "
+        "unchanged.",
         "1.4.0": "Synthetic world version 4: parked cars stay as long as cars do on their "
         "street (hours on commercial streets, overnight and days on residential ones, a "
         "resident's own car back at its slot) instead of changing every 4 hours, and "
