@@ -9,7 +9,10 @@ model holds)::
 writes ``rp_jax/models/NAME/``: the run's config and schedule, its parameters, the first
 ``rp_jax.shipped.SAMPLE_SIZE`` records of the split with the predictions made now, and
 ``model.json`` (ABOUT.json's ``what``, ``command``, ``figures``, ``good_for``, ``not_for``,
-plus the sample's MAE). ``python -m experiments.ship_models --list`` lists them.
+plus ``time_inputs``, the parts of a time the model reads, from its config; ``trained_image_size``,
+the (W, H) of the images of its dataset, from the split's records, which ``python -m
+rp_jax.keypoints`` reduces larger photos to; and the sample's MAE).
+``python -m experiments.ship_models --list`` lists them.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 
 from rp_jax import command_line, files, shipped
 
-__all__ = ["export", "main", "sample_mae", "sample_predictions"]
+__all__ = ["export", "main", "sample_mae", "sample_predictions", "trained_image_size"]
 
 ABOUT_KEYS = ("what", "command", "figures", "good_for", "not_for")
 _CONFIG_OF_SIZE = {"tiny": "synthetic_tiny", "small": "synthetic_small", "full": "synthetic"}
@@ -44,18 +47,26 @@ def sample_mae(pred: np.ndarray, sample) -> float:
     return float(np.abs(pred - sample["label"])[mask].mean())
 
 
+def trained_image_size(image_sizes) -> list[int]:
+    """The (W, H) most of a split's records were cut from (their ``image_size`` column)."""
+    sizes, counts = np.unique(np.asarray(image_sizes).reshape(-1, 2), axis=0, return_counts=True)
+    return [int(v) for v in sizes[int(np.argmax(counts))]]
+
+
 def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: str,
            split: str, about: dict, data_dir: str | None = None) -> Path:
     """Writes the shipped model ``name`` from a trained ``workdir`` (see the module doc)."""
     from rp_jax import predict
+    from rp_jax.commands import time_inputs
     from rp_jax.datasets import loading
 
     missing = [k for k in ABOUT_KEYS if not about.get(k)]
     if missing:
         raise ValueError(f"the about file needs {', '.join(missing)}")
     rp = predict.load(workdir)
-    cols = loading.load_columns(dataset, split, keys=shipped.SAMPLE_KEYS, config=data_config,
-                                data_dir=data_dir)
+    cols = loading.load_columns(dataset, split, keys=(*shipped.SAMPLE_KEYS, "image_size"),
+                                config=data_config, data_dir=data_dir)
+    size = trained_image_size(cols.pop("image_size"))
     sample = {k: np.asarray(v[: shipped.SAMPLE_SIZE]) for k, v in cols.items()}
     pred = sample_predictions(rp, sample).astype(np.float32)
     folder = shipped.MODELS_DIR / name
@@ -65,7 +76,8 @@ def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: 
         np.savez_compressed(f, **shipped.flatten(rp.params))
     with files.replacing(folder / "sample.npz") as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **sample, predictions=pred)
-    record = {"name": name, **{k: about[k] for k in ABOUT_KEYS}, "sample": {
+    record = {"name": name, **{k: about[k] for k in ABOUT_KEYS},
+              "time_inputs": time_inputs(rp.config), "trained_image_size": size, "sample": {
         "source": f"{dataset}/{data_config}, split {split!r}, first {len(pred)} records",
         "mae": round(sample_mae(pred, sample), 6)}}
     files.write_json(folder / "model.json", record)

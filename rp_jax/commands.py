@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import json
 import os
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -24,8 +26,21 @@ from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
 from rp_jax.sources.layout import LayoutError
 
-__all__ = ["InputError", "INPUT_ERRORS", "OVERWRITE_HELP", "datetime_flag", "load_predictor",
-           "run_command"]
+__all__ = [
+    "DateOnly",
+    "FALLBACK_MAX_SIZE",
+    "INPUT_ERRORS",
+    "InputError",
+    "OVERWRITE_HELP",
+    "TIME_INPUTS",
+    "check_time_has_what_the_model_reads",
+    "datetime_flag",
+    "load_predictor",
+    "model_about",
+    "run_command",
+    "time_inputs",
+    "wrap_hint",
+]
 
 EXIT_BAD_INPUT = 2
 OVERWRITE_HELP = ("replace files in --out that this command did not write (without it such a "
@@ -42,14 +57,77 @@ INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError,
                 OutsideScheduleError, OutputExistsError)
 
 
+class DateOnly(dt.datetime):
+    """A time flag given as a date alone (``2024-06-01``): midnight, and known to be so."""
+
+
+_DATE_ALONE = re.compile(r"\d{4}-\d{2}-\d{2}|\d{8}")
+
+
 def datetime_flag(text: str) -> dt.datetime:
-    """argparse ``type=`` for a time flag (bad text: argparse's one-line error, exit 2)."""
+    """argparse ``type=`` for a time flag (bad text: argparse's one-line error, exit 2).
+
+    A date alone gives a ``DateOnly`` (midnight), which ``check_time_has_what_the_model_reads``
+    refuses for a model that reads the time of day.
+    """
     try:
-        return parse_datetime(text)
+        when = parse_datetime(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"unreadable time {text!r}; expected {TIME_FORMATS_HELP}"
         ) from None
+    if _DATE_ALONE.fullmatch(str(text).strip()):
+        return DateOnly(when.year, when.month, when.day, tzinfo=when.tzinfo)
+    return when
+
+
+# What each of the paper's time inputs (Sec. III-B; rp_jax.time_encoding.FIELDS) reads.
+TIME_INPUTS = {
+    "time_of_day": "the time of day (hour and minute), not the date",
+    "day_of_year": "the day of the year (day and month), not the hour",
+    "hour_of_year": "the time of day and the day of the year",
+}
+# --max-size of a workdir that does not say its training resolution: the longer side of
+# Extended CMU Seasons' 1024x768 images.
+FALLBACK_MAX_SIZE = 1024
+
+
+def time_inputs(config) -> str:
+    """Which parts of a time the predictor of ``config`` reads, in words."""
+    fields = config.model.time_fields
+    return TIME_INPUTS.get(fields, f"the time fields {fields!r}")
+
+
+def check_time_has_what_the_model_reads(flag: str, when: dt.datetime | None, config) -> None:
+    """Refuse a date alone (``DateOnly``) for a model that reads the time of day.
+
+    Raises:
+      InputError: naming the flag, the date and what the model reads.
+    """
+    if isinstance(when, DateOnly) and config.model.time_fields != "day_of_year":
+        raise InputError(f"{flag} {when:%Y-%m-%d}: a date without a time of day, but the model "
+                         f"reads {time_inputs(config)}; give the hour too, e.g. "
+                         f'"{when:%Y-%m-%d} 09:30"')
+
+
+def wrap_hint(err: Exception) -> str:
+    """``rp_jax.predict.at_time``'s outside-the-schedule message in the commands' words."""
+    return str(err).replace("pass wrap=True", "give --wrap")
+
+
+def model_about(path: str | os.PathLike) -> dict:
+    """What a model says about itself: its ``model.json`` (a shipped model's, or one in a
+    workdir), or {} when it has none."""
+    from rp_jax import shipped
+
+    if not Path(path).exists() and str(path) in shipped.names():
+        about = shipped.MODELS_DIR / str(path) / "model.json"
+    else:
+        about = Path(path) / "model.json"
+    try:
+        return json.loads(about.read_text())
+    except (OSError, ValueError):
+        return {}
 
 
 def load_predictor(path: str | os.PathLike, flag: str = "--predictor"):

@@ -88,7 +88,7 @@ def test_command_writes_npz_and_overlay(model, image, tmp_path, capsys):
     assert "at 2024-12-01 17:00 -> a.npz and a_repeatability.png" in printed
     with np.load(out / "a.npz") as z:
         assert set(z.files) == {"xy", "scale", "score", "curves", "schedule_labels", "captured",
-                                "at", "image_size"}
+                                "at", "image_size", "detection_size"}
         assert z["curves"].shape == (150, 21) and z["score"].shape == (150,)
         assert str(z["captured"]) == "2024-06-01T09:30:00" and str(z["at"]) == "2024-12-01T17:00:00"
         assert list(z["schedule_labels"][:2]) == ["08:00", "08:30"]
@@ -149,3 +149,172 @@ def test_help_text_on_every_flag():
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "--captured" in proc.stdout and "EXIF" in proc.stdout
 
+
+
+# -- Issue 27: own photos as a user meets them (each test fails on the code before it).
+
+def _kp(xy, scores, at=AT, T=21):
+    scores = np.asarray(scores, np.float32)
+    return keypoints.ImageKeypoints(
+        xy=np.asarray(xy, np.float32), scale=np.full(len(scores), 4.0, np.float32),
+        curves=np.repeat(scores[:, None], T, axis=1), score=scores, captured=CAPTURED, at=at,
+        schedule_labels=tuple(f"s{j}" for j in range(T)), image_size=(200, 150))
+
+
+def _yellow_dots(png_path):
+    """Pixels of viridis' yellow end in the picture part of an overlay (the colour bar, at
+    the right, is cut off)."""
+    rgb = cv2.imread(str(png_path))[:, :, ::-1].astype(int)
+    picture = rgb[:, : int(rgb.shape[1] * 0.8)]
+    r, g, b = picture[..., 0], picture[..., 1], picture[..., 2]
+    return int(np.sum((r > 200) & (g > 200) & (b < 90)))
+
+
+def test_overlay_colours_follow_the_scores(tmp_path):
+    """Finding 2: on a fixed 0-1 scale, real photos' scores (0.0-0.39) were all one dark
+    purple. The scale now spans the scores: the most repeatable dots are yellow."""
+    grey = np.full((150, 200, 3), 128, np.uint8)
+    xy = [[20 + 8 * i, 20 + 5 * i] for i in range(20)]
+    kp = _kp(xy, np.linspace(0.02, 0.39, 20))
+    png = keypoints.write_overlay(grey, kp, tmp_path / "o.png", "photo.jpg")
+    assert _yellow_dots(png) > 5
+    assert keypoints.colour_range([kp]) == pytest.approx((0.02, 0.39), abs=1e-6)
+
+
+def test_overlays_of_one_run_share_one_scale(model, image, tmp_path, monkeypatch):
+    """Finding 2: one colour scale for every image (and time) of a run, named model."""
+    seen = []
+
+    def record(*args, **kwargs):
+        seen.append(kwargs)
+        return tmp_path / "x.png"
+
+    monkeypatch.setattr(keypoints_cli, "write_overlay", record)
+    a, b = _write(tmp_path / "a.jpg", image), _write(tmp_path / "b.jpg", image[:, ::-1].copy())
+    keypoints_cli.run([a, b], model, tmp_path / "out", captured=CAPTURED, at=AT,
+                      max_keypoints=50)
+    assert len(seen) == 2 and seen[0]["model"] == model.name
+    assert (seen[0]["vmin"], seen[0]["vmax"]) == (seen[1]["vmin"], seen[1]["vmax"])
+    assert seen[0]["vmin"] < seen[0]["vmax"]
+
+
+def test_a_users_files_in_out_are_kept(model, image, tmp_path, capsys):
+    """Findings 3 and 8: a rocket.npz of the user's in --out was replaced; a failed run left
+    an empty --out."""
+    a = _write(tmp_path / "rocket.jpg", image)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "rocket.npz").write_bytes(b"mine")
+    argv = [str(a), "--predictor", str(model), "--captured", "2024-06-01 09:30", "--out",
+            str(out), "--max-keypoints", "30"]
+    assert keypoints_cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "rocket.npz" in err and "--overwrite" in err
+    assert (out / "rocket.npz").read_bytes() == b"mine"
+    assert keypoints_cli.main([*argv, "--overwrite"]) == 0
+    assert (out / "rocket.npz").read_bytes() != b"mine"
+    assert keypoints_cli.main(argv) == 0  # its own outputs of the last run: replaced
+    # A run that fails half-way (a time outside the model's 08:00-18:00) leaves no folder.
+    new = tmp_path / "new"
+    assert keypoints_cli.main([*argv[:-3], str(new), "--at", "2024-06-01 22:00"]) == 2
+    assert not new.exists()
+
+
+def test_large_images_are_reduced_to_the_models_resolution(predictor, image, tmp_path):
+    """Finding 4: the photo is reduced to --max-size before detection (the model's training
+    resolution by default); keypoints come back in the photo's pixels."""
+    big = cv2.resize(image, (1280, 960), interpolation=cv2.INTER_CUBIC)
+    kp = keypoints.image_keypoints(predictor, big, CAPTURED, max_keypoints=60, max_size=320)
+    assert kp.image_size == (1280, 960) and kp.detection_size == (320, 240)
+    assert kp.xy.max(0)[0] <= 1279.5 and kp.xy.max(0)[1] <= 959.5 and kp.xy.max() > 320
+    small = keypoints.image_keypoints(predictor, image, CAPTURED, max_keypoints=60)
+    # The same keypoints as on the photo at that size (SIFT's order may swap near-ties).
+    back = keypoints.rescale_xy(kp.xy, (1280, 960), (320, 240))
+    near = np.linalg.norm(back[:, None] - small.xy[None], axis=2).min(1)
+    assert np.median(near) < 1.0
+    np.testing.assert_allclose(keypoints.rescale_xy([[0, 0], [3, 3]], (4, 4), (8, 8)),
+                               [[0.5, 0.5], [6.5, 6.5]])
+    assert keypoints.reduced_size((8892, 6000), 640) == (640, 432)
+    assert keypoints_cli.resolve_max_size(None, "webcam_clipart-synthetic") == 640
+    assert keypoints_cli.resolve_max_size(None, "cmu_seasons-synthetic") == 512
+    assert keypoints_cli.resolve_max_size(0, "cmu_seasons-synthetic") is None
+
+
+def test_max_size_flag_and_its_help(model, image, tmp_path, capsys):
+    big = tmp_path / "big.png"
+    cv2.imwrite(str(big), cv2.resize(image, (960, 720))[:, :, ::-1])
+    rc = keypoints_cli.main([str(big), "--predictor", str(model), "--captured", "2024-06-01 "
+                             "09:30", "--max-size", "480", "--out", str(tmp_path / "o"),
+                             "--no-overlay", "--max-keypoints", "40"])
+    assert rc == 0
+    assert "reduced from 960x720 to 480x360 (--max-size)" in capsys.readouterr().out
+    with np.load(tmp_path / "o" / "big.npz") as z:
+        assert list(z["detection_size"]) == [480, 360] and list(z["image_size"]) == [960, 720]
+    text = " ".join(keypoints_cli._parser().format_help().split())
+    assert "--max-size" in text and "64x64-pixel patches" in text and "GB" in text
+
+
+def _oriented(path, rgb, orientation):
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    Image.fromarray(rgb).save(path, exif=exif)
+    return path
+
+
+@pytest.mark.parametrize("orientation", range(1, 9))
+def test_exif_orientation_as_viewers_show_it(tmp_path, orientation):
+    """Finding 5: a photo tagged Orientation = 6 was processed sideways."""
+    from PIL import ImageOps
+
+    rgb = np.random.default_rng(orientation).integers(0, 256, (30, 50, 3), dtype=np.uint8)
+    path = _oriented(tmp_path / "p.png", rgb, orientation)
+    with Image.open(path) as im:
+        shown = np.asarray(ImageOps.exif_transpose(im).convert("RGB"))
+    np.testing.assert_array_equal(keypoints.load_image(path), shown)
+
+
+def test_exif_orientation_of_a_jpeg(tmp_path, image):
+    path = tmp_path / "phone.jpg"
+    exif = Image.Exif()
+    exif[0x0112] = 6  # turn 90 degrees clockwise to show
+    Image.fromarray(image).save(path, exif=exif, quality=95)
+    shown = keypoints.load_image(path)
+    assert shown.shape == (320, 240, 3)
+    expected = np.rot90(image, -1).astype(int)
+    assert np.abs(shown.astype(int) - expected).mean() < 4
+
+
+def test_times_wrap_date_alone_and_what_the_model_reads(model, image, tmp_path, capsys):
+    """Finding 6: --at 22:00 told the user to 'pass wrap=True', no flag of the command; a
+    date alone was read as 00:00; nothing said which part of the time a model reads."""
+    a = _write(tmp_path / "a.jpg", image)
+    argv = [str(a), "--predictor", str(model), "--captured", "2024-06-01 09:30",
+            "--max-keypoints", "30", "--no-overlay"]
+    assert keypoints_cli.main([*argv, "--at", "2024-06-01 22:00", "--out",
+                               str(tmp_path / "o1")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "give --wrap" in err and "wrap=True" not in err
+    assert keypoints_cli.main([*argv, "--at", "2024-06-01 22:00", "--wrap", "--out",
+                               str(tmp_path / "o2")]) == 0
+    printed = capsys.readouterr().out
+    assert "reads the time of day (hour and minute), not the date" in printed
+    assert keypoints_cli.main([*argv, "--at", "2024-06-01", "--out", str(tmp_path / "o3")]) == 2
+    err = capsys.readouterr().err
+    assert "--at 2024-06-01: a date without a time of day" in err and err.count("\n") == 1
+    assert not (tmp_path / "o3").exists()
+
+
+def test_model_json_says_what_each_model_reads_and_its_resolution():
+    import json
+
+    from experiments import ship_models
+    from rp_jax import shipped
+    from rp_jax.commands import TIME_INPUTS
+
+    for name in shipped.names():
+        about = json.loads((shipped.MODELS_DIR / name / "model.json").read_text())
+        config = json.loads((shipped.MODELS_DIR / name / "config.json").read_text())
+        assert about["time_inputs"] == TIME_INPUTS[config["model"]["time_fields"]]
+        w, h = about["trained_image_size"]
+        assert 100 <= h < w <= 2000, name
+    assert ship_models.trained_image_size([[640, 480], [640, 480], [320, 240]]) == [640, 480]
