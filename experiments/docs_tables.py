@@ -215,12 +215,12 @@ def sec4a_headline(runs_by_dataset: Mapping[str, Sequence[tuple[int, Mapping]]])
     """The README's one-table summary of Sec. IV-A: per dataset, RP's and the best
     baseline's test MAE over the world seeds and the default seed's row."""
     head = ["dataset (synthetic, full size)", "seeds", "RP test MAE", "best baseline's",
-            "RP vs best baseline", "default seed (`make demo`)"]
+            "RP vs best baseline", "default seed 0"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for dataset, runs in runs_by_dataset.items():
         label = DATASET_LABELS.get(dataset, dataset)
         if not runs:
-            lines.append(f"| {label} | 0 | not committed | | | |")
+            lines.append(f"| {label} | none committed yet | | | | |")
             continue
         ms = [m for _, m in runs]
         rel = [relative_to_best(m) for m in ms]
