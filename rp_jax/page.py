@@ -47,6 +47,8 @@ __all__ = [
     "SliderCycle",
     "check_page_path",
     "colour_range",
+    "decode_curves",
+    "encode_curves",
     "keypoints_page",
     "map_page",
     "slider_cycle",
@@ -155,6 +157,25 @@ def _rounded(a: np.ndarray, decimals: int = 4) -> list:
     return np.round(np.asarray(a, np.float64), decimals).tolist()
 
 
+CURVE_LEVELS = 65535  # curves travel as uint16 steps of 1/65535 (a map's P x T values)
+
+
+def encode_curves(curves: np.ndarray) -> str:
+    """[N, T] repeatability in [0, 1] as base64 of little-endian uint16 (row-major).
+
+    A third of the size of decimal JSON, and a step of 1.5e-5, far below the 0.001 the page
+    prints: a map of 100,000 points and 21 timestamps is 5.6 MB instead of 15.
+    """
+    q = np.round(np.clip(np.asarray(curves, np.float64), 0.0, 1.0) * CURVE_LEVELS)
+    return base64.b64encode(q.astype("<u2").tobytes()).decode("ascii")
+
+
+def decode_curves(text: str, n: int, t: int) -> np.ndarray:
+    """The inverse of ``encode_curves``: [n, t] float64."""
+    raw = np.frombuffer(base64.b64decode(text), "<u2")
+    return raw.reshape(n, t).astype(np.float64) / CURVE_LEVELS
+
+
 def _checked_curves(curves: np.ndarray, n: int, schedule) -> np.ndarray:
     curves = np.asarray(curves, np.float64)
     T = schedule.num_timestamps
@@ -231,7 +252,7 @@ def keypoints_page(
         "colours": _colour_table(),
         "image": {"width": int(w), "height": int(h), "shown_width": iw, "shown_height": ih},
         "xy": _rounded(xy, 2),
-        "curves": _rounded(curves),
+        "curves": encode_curves(curves),
     }
     return _render(data, image_uri=uri)
 
@@ -293,7 +314,7 @@ def map_page(
         "bounds": [*_rounded(lo, 4), *_rounded(hi, 4)],
         "xy": _rounded(top_xy, 4),
         "cameras": _rounded(cams, 4),
-        "curves": _rounded(curves),
+        "curves": encode_curves(curves),
         # One bit per point and timestamp, base64 of np.packbits (big-endian bit order).
         "kept": [base64.b64encode(np.packbits(k).tobytes()).decode("ascii") for k in kept],
         "kept_counts": [int(k.sum()) for k in kept],
@@ -405,6 +426,18 @@ canvas.rp-panel { display: block; border: 1px solid #ddd; margin: 4px 0 10px 0; 
 (function () {
 const D = JSON.parse(document.getElementById("rp-data").textContent);
 const C = D.cycle, T = C.offsets.length, N = D.xy.length, MAP = D.kind === "map";
+D.curves = (function (b64) {  // rp_jax.page.encode_curves: uint16 little-endian, / 65535
+  const s = atob(b64), rows = [];
+  for (let i = 0; i < N; i++) {
+    const row = new Float64Array(T);
+    for (let j = 0; j < T; j++) {
+      const k = 2 * (i * T + j);
+      row[j] = (s.charCodeAt(k) | (s.charCodeAt(k + 1) << 8)) / 65535;
+    }
+    rows.push(row);
+  }
+  return rows;
+})(D.curves);
 const CURVE_COLOUR = "#d62728";  // not in viridis: the browser test counts its pixels
 const view = document.getElementById("rp-view"), vctx = view.getContext("2d");
 const slider = document.getElementById("rp-slider");
