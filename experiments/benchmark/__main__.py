@@ -4,7 +4,12 @@ summarization of V-A and localization of V-B).
     python -m experiments.benchmark [STAGE ...] [--out DIR] [--size tiny|full] [--repeats N]
                                     [--quiet]
 
-Stages: train, predict, layers, match, groundtruth, summarize, localize (default: all).
+Stages: train, predict, layers, match, groundtruth, label_scale, summarize, localize
+(default: all).
+
+* label_scale: labelling one Webcam-like viewpoint of 1,000, 3,000 and 10,000 frames
+  (``--label-scale-frames`` to choose), wall and CPU time, peak memory and records per size,
+  and the fit of cost against n; frames are rendered once into DIR/label_scale/world/;
 
 * layers: per-layer forward and forward+backward times, JAX vs PyTorch (``layer_profile``);
 
@@ -47,6 +52,10 @@ def main(argv: list[str] | None = None) -> int:
         "--repeats", type=int, default=5, help="timed rounds per stage (after warm-up)"
     )
     parser.add_argument(
+        "--label-scale-frames", type=int, nargs="+", default=None, metavar="N",
+        help="frame counts of the label_scale stage (default 1000 3000 10000 at full size)",
+    )
+    parser.add_argument(
         "--torch-compile",
         choices=("auto", "yes", "no"),
         default="auto",
@@ -73,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         repeats=args.repeats,
         torch_compile=torch_compile,
         started=started,
+        label_scale_frames=tuple(args.label_scale_frames) if args.label_scale_frames else None,
     )
     print(md.read_text())
     print(f"wrote {js} and {md}")

@@ -189,6 +189,39 @@ def _groundtruth_table(entry: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _label_scale_table(entry: dict[str, Any]) -> list[str]:
+    """Section of the ``label_scale`` stage: one Webcam-like viewpoint per size."""
+    lines = [
+        "## label_scale",
+        "",
+        (
+            f"{entry['ours']['variant']}: one Webcam-like viewpoint (640x480 frames of the "
+            "synthetic world, 21 per day) labelled as a dataset build labels it, in a fresh "
+            "process per size (peak RSS = ru_maxrss of it and its children; CPU = user + "
+            "system of both). No peer."
+        ),
+        "",
+        "| frames | wall s | CPU s | CPU s per frame | peak RSS MB | records | render s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    renders = {r["frames"]: r for r in entry.get("renders", [])}
+    for row in entry["label_scale"]:
+        rendered = renders.get(row["frames"], {})
+        lines.append(
+            f"| {row['frames']:,} | {_fmt(row['wall_s'])} | {_fmt(row['cpu_s'])} | "
+            f"{_fmt(row['cpu_s'] / row['frames'])} | {row['peak_rss_mb']:.0f} | "
+            f"{row['records']:,} | {_fmt(rendered.get('seconds'))} |"
+        )
+    fit = entry.get("linear_fit_cpu")
+    if fit:
+        lines += ["", (
+            f"Linear fit: CPU s ~ {fit['a']:.3g} + {fit['b']:.3g} n; log-log exponent "
+            f"{entry['log_log_exponent_cpu']:.2f}; CPU per frame varies by "
+            f"{100 * entry['cpu_per_frame_spread']:.0f} % over the sizes."
+        )]
+    return lines + [""]
+
+
 def _summarize_table(entry: dict[str, Any], predict: dict[str, Any] | None = None) -> list[str]:
     """Section of the ``summarize`` stage (Sec. V-A): one ours / K-cover row pair per size."""
     lines = [
@@ -379,6 +412,8 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
             lines += _match_table(e)
         elif stage == "groundtruth":
             lines += _groundtruth_table(e)
+        elif stage == "label_scale":
+            lines += _label_scale_table(e)
         elif stage == "summarize":
             lines += _summarize_table(e, results.get("predict"))
         elif stage == "localize":

@@ -2,7 +2,8 @@
 
 ``run_benchmark(stages, out_dir, ...)`` is what the command line calls; notebooks and tests
 call it too. Each stage's module (``model_stage``, ``layer_profile``, ``match_stage``,
-``groundtruth_stage``, ``summarize_stage``, ``localize_stage``) says what it measures and how.
+``groundtruth_stage``, ``label_scale_stage``, ``summarize_stage``, ``localize_stage``) says
+what it measures and how.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 from experiments.benchmark import report
 from experiments.benchmark.config import SIZES, STAGE_VARIANTS
 from experiments.benchmark.groundtruth_stage import run_groundtruth_stage
+from experiments.benchmark.label_scale_stage import run_label_scale_stage
 from experiments.benchmark.layer_profile import run_layers_stage
 from experiments.benchmark.localize_stage import run_localize_stage
 from experiments.benchmark.match_stage import run_match_stage
@@ -22,7 +24,8 @@ from experiments.benchmark.summarize_stage import run_summarize_stage
 
 __all__ = ["ALL_STAGES", "NOTES", "run_benchmark"]
 
-ALL_STAGES = ("train", "predict", "layers", "match", "groundtruth", "summarize", "localize")
+ALL_STAGES = ("train", "predict", "layers", "match", "groundtruth", "label_scale", "summarize",
+              "localize")
 NOTES = [
     (
         "Each JAX configuration and the PyTorch peer run in their own worker process, started "
@@ -47,6 +50,7 @@ def run_benchmark(
     started: str | None = None,
     progress: bool = True,
     model_variants: dict[str, list[str]] | None = None,
+    label_scale_frames: tuple[int, ...] | None = None,
 ) -> tuple[Path, Path]:
     """Run ``stages`` and write ``benchmark.json`` / ``benchmark.md`` into ``out_dir``.
 
@@ -61,6 +65,8 @@ def run_benchmark(
       progress: tqdm bars.
       model_variants: per model stage, the variants to measure (names of
         ``config.VARIANTS``; default ``config.STAGE_VARIANTS``, plus ``torch_compile``).
+      label_scale_frames: frame counts of the ``label_scale`` stage (default
+        ``label_scale_stage.FRAME_SIZES[size]``).
 
     Returns:
       Paths of ``benchmark.json`` and ``benchmark.md``.
@@ -71,11 +77,12 @@ def run_benchmark(
     if size not in SIZES:
         raise ValueError(f"unknown size {size!r}; expected one of {sorted(SIZES)}")
     started = started or dt.datetime.now().isoformat(timespec="seconds")
-    results = {
+    earlier = {
         k: v
         for k, v in report.read_results(out_dir).items()
-        if isinstance(v, dict) and v.get("size") == size and k not in stages
+        if isinstance(v, dict) and v.get("size") == size
     }
+    results = {k: v for k, v in earlier.items() if k not in stages}
     for stage in stages:
         load_before = os.getloadavg()
         if stage in ("train", "predict"):
@@ -94,6 +101,11 @@ def run_benchmark(
             entry = run_summarize_stage(size, repeats, progress=progress)
         elif stage == "localize":
             entry = run_localize_stage(size, repeats, progress=progress)
+        elif stage == "label_scale":
+            entry = run_label_scale_stage(size, repeats, progress=progress,
+                                          stage_dir=Path(out_dir) / "label_scale",
+                                          sizes=label_scale_frames,
+                                          previous=earlier.get("label_scale"))
         else:
             entry = run_groundtruth_stage(size, repeats, progress=progress)
         # The 1-minute load average around the stage: how shared the machine was.

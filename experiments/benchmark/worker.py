@@ -24,6 +24,13 @@ Matching alone (labelling's quadratic stage)::
 matches one synthetic viewpoint with ``match_all_pairs(method=METHOD)`` and prints its time
 and peak memory, then exits.
 
+Labelling one large viewpoint (``label_scale_stage``)::
+
+    python -m experiments.benchmark.worker label_scale LAYOUT_ROOT CACHE_DIR MAX_KEYPOINTS
+
+labels the Webcam-like viewpoint at LAYOUT_ROOT as a dataset build does and prints its wall
+and CPU time, peak memory and record count, then exits.
+
 Map summarization (Sec. V-A)::
 
     python -m experiments.benchmark.worker summarize NUM_POINTS SIZE REPEATS KCOVER
@@ -71,6 +78,18 @@ def _summarize(argv: list[str]) -> int:
 def main(argv: list[str]) -> int:
     if argv[:1] == ["summarize"]:
         return _summarize(argv[1:])
+    if argv[:1] == ["label_scale"] and len(argv) == 4:
+        try:  # label_scale ROOT CACHE_DIR MAX_KEYPOINTS
+            from pathlib import Path
+
+            from experiments.benchmark.label_scale_stage import label_scale_once
+
+            _send(label_scale_once(Path(argv[1]), Path(argv[2]), max_keypoints=int(argv[3])))
+        except Exception as e:  # noqa: BLE001 - report any failure, then exit non-zero
+            traceback.print_exc()
+            _send({"error": f"{type(e).__name__}: {e}"})
+            return 1
+        return 0
     if argv[:1] == ["match"] and len(argv) == 4:
         try:
             from experiments.benchmark.config import SIZES

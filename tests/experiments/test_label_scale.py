@@ -1,0 +1,63 @@
+"""The ``label_scale`` benchmark stage (a Webcam-like viewpoint of many frames labelled as a
+build labels it, Sec. IV-A-1): its viewpoints, its fit, and its report at tiny size.
+
+No timing thresholds: the figures are whatever a shared machine gives; the tests check the
+viewpoints the stage builds and the report's structure.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from experiments.benchmark.label_scale_stage import NUM_DAYS, fit, viewpoint_days
+from experiments.benchmark.run import run_benchmark
+
+
+def test_smaller_viewpoints_are_spread_subsets_of_larger_ones():
+    d1k, d3k, d10k = (viewpoint_days(n) for n in (1_000, 3_000, 10_000))
+    assert (len(d1k), len(d3k), len(d10k)) == (48, 143, 477)
+    assert set(d1k) <= set(d3k) <= set(d10k) == set(range(NUM_DAYS))
+    # The 48 days of 1,000 frames cover the 477 (every season), no gap over 3 even steps.
+    assert d1k[0] < 477 / 48 and d1k[-1] > 477 - 477 / 48
+    assert np.diff(d1k).max() < 3 * 477 / 48
+    with pytest.raises(ValueError, match="num_frames"):
+        viewpoint_days(NUM_DAYS * 21 + 1)
+
+
+def test_fit_of_cost_against_frames():
+    rows = [{"frames": n, "cpu_s": 5.0 + 0.5 * n, "wall_s": 1.0 + 0.25 * n}
+            for n in (1_000, 3_000, 10_000)]
+    out = fit(rows)
+    assert out["linear_fit_cpu"]["b"] == pytest.approx(0.5)
+    assert out["linear_fit_cpu"]["a"] == pytest.approx(5.0)
+    assert out["log_log_exponent_cpu"] == pytest.approx(1.0, abs=0.01)
+    assert out["cpu_per_frame_spread"] == pytest.approx(0.505 / 0.5005 - 1, rel=1e-6)
+    quadratic = fit([{"frames": n, "cpu_s": n * n / 1e3, "wall_s": 1.0} for n in (100, 1000)])
+    assert quadratic["log_log_exponent_cpu"] == pytest.approx(2.0)
+    assert "linear_fit_cpu" not in fit(rows[:1])
+
+
+@pytest.mark.slow
+def test_tiny_stage_renders_once_labels_and_keeps_earlier_sizes(tmp_path):
+    js, md = run_benchmark(["label_scale"], tmp_path, size="tiny", progress=False,
+                           label_scale_frames=(21,))
+    first = json.loads(js.read_text())["label_scale"]
+    (row,) = first["label_scale"]
+    assert row["frames"] == 21 and row["sources"] == 21  # one day: every image a source
+    assert row["records"] > 21 * 50 and row["peak_rss_mb"] > 0 and row["cpu_s"] > 0
+    assert not row["resumed"]
+    assert first["renders"][0]["rendered"] == 21
+
+    js, md = run_benchmark(["label_scale"], tmp_path, size="tiny", progress=False,
+                           label_scale_frames=(42,))
+    second = json.loads(js.read_text())["label_scale"]
+    assert [r["frames"] for r in second["label_scale"]] == [21, 42]
+    assert second["label_scale"][0] == row  # the earlier size is kept as measured
+    assert second["renders"][1]["rendered"] == 21  # the first day was on disk already
+    assert "linear_fit_cpu" in second
+    text = md.read_text()
+    assert "## label_scale" in text and "| 42 |" in text
+    assert not list(tmp_path.glob("label_scale/tiny/cache_*"))  # removed once measured
