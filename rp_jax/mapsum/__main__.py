@@ -7,7 +7,10 @@
 Writes a map folder (``model/`` binary, ``model_txt/`` text, ``localization.npz``,
 ``summary.json``) that ``python -m rp_jax.localize --map`` reads; with ``--all-slots`` one per
 timestamp of the predictor's schedule. The library function is
-``rp_jax.mapsum.model_summary.summarize_model``.
+``rp_jax.mapsum.model_summary.summarize_model``. ``--out`` is a ``files.OutputFolder`` (a
+user's own ``summary.json`` there is never replaced without ``--overwrite``; a failed run
+leaves nothing), ``--ratio`` must lie strictly between 0 and 1, and ``--at`` is checked
+against the predictor's schedule (and what part of a time it reads) before any work.
 """
 
 from __future__ import annotations
@@ -17,13 +20,16 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rp_jax import command_line, progress
+from rp_jax import command_line, files, progress
 from rp_jax.commands import (
     INPUT_ERRORS,
+    OVERWRITE_HELP,
     InputError,
+    check_time_has_what_the_model_reads,
     datetime_flag,
     load_predictor,
     run_command,
+    time_inputs,
 )
 
 PROG = "python -m rp_jax.mapsum"
@@ -45,9 +51,13 @@ def _parser() -> argparse.ArgumentParser:
                    help="COLMAP model folder (cameras, images, points3D as .bin or .txt)")
     s.add_argument("--images", required=True, metavar="IMAGE_DIR",
                    help="folder of the model's database images (names as in the model)")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    s.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder (created; files in it that this command did not write "
+                   "are never replaced without --overwrite; a failed run leaves nothing)")
+    s.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     s.add_argument("--ratio", required=True, type=float, metavar="R",
-                   help="pruning ratio: the fraction of each part's points removed, in [0, 1]")
+                   help="pruning ratio: the fraction of each part's points removed, strictly "
+                   "between 0 and 1 (0 would keep the whole map, 1 would leave none)")
     s.add_argument("--method", choices=METHOD_CHOICES, default="rp",
                    help="rp: most repeatable at --at (the paper's); kcover: Li et al.'s "
                    "minimal scene description; random; most_observed: longest tracks "
@@ -58,7 +68,10 @@ def _parser() -> argparse.ArgumentParser:
                    "--method rp")
     s.add_argument("--at", type=datetime_flag, metavar="TIME",
                    help='query time, e.g. "2024-12-01 17:00" (wall clock of the map\'s place); '
-                   "needed by --method rp unless --all-slots")
+                   "needed by --method rp unless --all-slots. The predictor reads only part of "
+                   "it (the command prints which: the time of day for webcam_clipart-synthetic "
+                   "and robotcar-synthetic, the day of the year for cmu_seasons-synthetic); a "
+                   "date alone is midnight, refused for a predictor that reads the time of day")
     s.add_argument("--all-slots", action="store_true",
                    help="one summary per timestamp of the predictor's schedule, in "
                    "DIR/slot_<j>_<label>/ (the paper's periodic server job; --method rp)")
@@ -92,12 +105,45 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _outputs(args, predictor) -> list[str]:
+    """What ``summarize_model`` writes in ``--out`` (``files.OutputFolder``'s names)."""
+    from rp_jax.localize.map_description import (
+        MAP_DESCRIPTION,
+        MAP_MODEL_DIR,
+        MAP_MODEL_TEXT_DIR,
+    )
+    from rp_jax.mapsum.model_summary import POINT_REPEATABILITY, SUMMARY_JSON, slot_folder
+
+    names = [SUMMARY_JSON] + ([POINT_REPEATABILITY] if args.method == "rp" else [])
+    if args.all_slots:
+        return names + [slot_folder(j, label) for j, label in enumerate(predictor.schedule.labels)]
+    return names + [MAP_MODEL_DIR, MAP_MODEL_TEXT_DIR, MAP_DESCRIPTION]
+
+
+def _check_inside_schedule(at, schedule) -> None:
+    """Refuse, before any work, an --at the predictor's schedule does not cover (the library
+    found it only after predicting every observation of the map)."""
+    import numpy as np
+
+    from rp_jax import predict
+    from rp_jax.schedule import OutsideScheduleError
+
+    if at is None:
+        return
+    try:
+        predict.at_time(np.zeros(schedule.num_timestamps), schedule, at)
+    except OutsideScheduleError as err:
+        raise InputError("--at " + str(err).split("; pass wrap=True")[0]) from err
+
+
 def _summarize(args) -> int:
     from rp_jax.mapsum.model_summary import summarize_model
     from rp_jax.sources.capture_times import CaptureTimes, read_time_table
 
-    if not 0.0 <= args.ratio <= 1.0:
-        raise InputError(f"--ratio {args.ratio}: expected a pruning ratio in [0, 1]")
+    if not 0.0 < args.ratio < 1.0:  # 1 wrote an empty map with exit status 0
+        raise InputError(f"--ratio {args.ratio:g}: expected a pruning ratio strictly between 0 "
+                         "and 1, the fraction of the points removed (0 keeps the whole map, 1 "
+                         "leaves no point to localize against)")
     if not Path(args.model).is_dir():
         raise InputError(f"--model {args.model}: no such folder")
     if not Path(args.images).is_dir():
@@ -130,17 +176,23 @@ def _summarize(args) -> int:
 
         platform.configure_cpu()
         predictor = load_predictor(args.predictor, "--predictor")
-    try:
-        records = summarize_model(
-            args.model, args.images, args.out, ratio=args.ratio, method=args.method,
-            predictor=predictor, at=args.at, all_slots=args.all_slots, capture_time=capture_time,
-            features=args.features, global_features=args.global_features,
-            partition_method=args.partition, parts=args.parts, cell_size=args.cell_size,
-            max_keypoints=args.max_keypoints, seed=args.seed)
-    except ValueError as err:  # e.g. a time the predictor's schedule does not cover
-        if isinstance(err, INPUT_ERRORS):
-            raise
-        raise InputError(str(err)) from err
+        check_time_has_what_the_model_reads("--at", args.at, predictor.config)
+        _check_inside_schedule(args.at, predictor.schedule)
+        print(f"predictor {Path(str(args.predictor)).name} reads "
+              f"{time_inputs(predictor.config)}")
+    with files.OutputFolder(args.out, _outputs(args, predictor), overwrite=args.overwrite):
+        try:
+            records = summarize_model(
+                args.model, args.images, args.out, ratio=args.ratio, method=args.method,
+                predictor=predictor, at=args.at, all_slots=args.all_slots,
+                capture_time=capture_time, features=args.features,
+                global_features=args.global_features, partition_method=args.partition,
+                parts=args.parts, cell_size=args.cell_size, max_keypoints=args.max_keypoints,
+                seed=args.seed)
+        except ValueError as err:  # e.g. a time the predictor's schedule does not cover
+            if isinstance(err, INPUT_ERRORS):
+                raise
+            raise InputError(str(err)) from err
     if args.html is not None:
         from rp_jax.mapsum.summary_page import summary_page
 
