@@ -1,7 +1,9 @@
 """The notebooks run top to bottom at tiny size (so they cannot rot).
 
-The quickstart renders a tiny synthetic world, builds labels, trains and predicts; the
-exploration notebook then loads the quickstart's workdir.
+The quickstart puts a shipped model on a photo, then renders a tiny synthetic world, builds
+labels, trains and predicts; the exploration notebook then loads the quickstart's workdir. The
+own-data notebook puts a shipped model on a photo through a day, summarizes a tiny rendered
+COLMAP map for a time and localizes queries against it.
 """
 
 import os
@@ -40,6 +42,7 @@ def test_quickstart_then_explore(tmp_path):
     outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
                       for o in c.get("outputs", []))
     assert "test_mae" in outputs and "repeatability at 17:15" in outputs
+    assert "Why this tiny run is not a result" in "".join(c.source for c in nb.cells)
     assert (work / "run" / "metrics.json").exists()
     nb = _execute("explore_predictions.ipynb", env, tmp_path)
     images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
@@ -47,7 +50,20 @@ def test_quickstart_then_explore(tmp_path):
     assert len(images) >= 2
 
 
-@pytest.mark.parametrize("name", ["quickstart.ipynb", "explore_predictions.ipynb"])
+@pytest.mark.slow
+def test_own_data(tmp_path):
+    env = {"RP_JAX_NOTEBOOK_DIR": str(tmp_path / "od"), "RP_JAX_NO_CPU_SETUP": "1"}
+    nb = _execute("own_data.ipynb", env, tmp_path)
+    outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
+                      for o in c.get("outputs", []))
+    assert "keypoints; curves" in outputs and "points for 2011-07-28 15:00" in outputs
+    assert "queries against" in outputs
+    assert (tmp_path / "od" / "summary_jul28" / "model").is_dir()
+    assert (tmp_path / "od" / "localized" / "submission.txt").exists()
+
+
+@pytest.mark.parametrize("name", ["quickstart.ipynb", "explore_predictions.ipynb",
+                                  "own_data.ipynb"])
 def test_committed_with_outputs_small_and_colab_ready(name):
     """As committed: figures visible on the repository page, under 1 MB, and a first code
     cell that installs the package in Colab and does nothing elsewhere."""
