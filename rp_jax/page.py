@@ -96,11 +96,17 @@ class SliderCycle:
         return dataclasses.asdict(self)
 
 
-def slider_cycle(schedule: schedule_lib.TimeSchedule) -> SliderCycle:
-    """The slider of a schedule: its whole cycle if it wraps, else its first to last timestamp."""
+def slider_cycle(schedule: schedule_lib.TimeSchedule, wrap: bool | None = None) -> SliderCycle:
+    """The slider of a schedule: its whole cycle if it wraps, else its first to last timestamp.
+
+    Args:
+      schedule: the predictor's timestamps.
+      wrap: as ``rp_jax.predict.at_time``'s: None wraps a schedule that covers its cycle;
+        True reads across the gap from the last timestamp to the first (``--wrap``).
+    """
     step = _DAY_STEP if schedule.cycle == "day" else _YEAR_STEP
     offsets = tuple(int(o) for o in schedule.offsets)
-    wraps = bool(schedule.covers_cycle)
+    wraps = bool(schedule.covers_cycle if wrap is None else wrap)
     if wraps:
         start, stop = 0, (schedule.period - 1) // step * step
     else:
@@ -208,6 +214,7 @@ def keypoints_page(
     title: str = "",
     model: str = "",
     max_image_side: int = MAX_IMAGE_SIDE,
+    wrap: bool | None = None,
 ) -> str:
     """The HTML page of an image's keypoints and their repeatability curves.
 
@@ -223,6 +230,8 @@ def keypoints_page(
       model: the predictor's name, for the caption.
       max_image_side: the embedded image is shrunk to this longest side (the keypoints keep
         their full-resolution positions).
+      wrap: read the curves across the gap from the last timestamp to the first, as
+        ``predict.at_time(..., wrap=True)``; None: only where the schedule covers its cycle.
 
     Returns:
       The page (a str); ``write_page`` writes it.
@@ -237,7 +246,7 @@ def keypoints_page(
     curves = _checked_curves(curves, len(xy), schedule)
     h, w = rgb.shape[:2]
     uri, iw, ih = _image_data_uri(rgb, max_image_side)
-    cycle = slider_cycle(schedule)
+    cycle = slider_cycle(schedule, wrap)
     data = {
         "kind": "keypoints",
         "title": title or f"{len(xy)} keypoints",
@@ -368,7 +377,7 @@ def write_page(path: str | os.PathLike, page: str) -> Path:
 
 
 def write_keypoints_page(path: str | os.PathLike, rgb: np.ndarray, kp, schedule, *,
-                         title: str = "", model: str = "") -> Path:
+                         title: str = "", model: str = "", wrap: bool | None = None) -> Path:
     """Writes the page of one image's ``rp_jax.keypoints.ImageKeypoints`` (``kp``).
 
     The slider starts at ``kp.at``; the curves' capture time ``kp.captured`` is marked.
@@ -378,7 +387,7 @@ def write_keypoints_page(path: str | os.PathLike, rgb: np.ndarray, kp, schedule,
     """
     return write_page(path, keypoints_page(rgb, kp.xy, kp.curves, schedule,
                                            captured=kp.captured, at=kp.at, title=title,
-                                           model=model))
+                                           model=model, wrap=wrap))
 
 
 _TEMPLATE = r"""<!DOCTYPE html>

@@ -117,6 +117,8 @@ def test_slider_covers_the_schedules_span_or_its_whole_cycle():
     assert (year.cycle, year.wraps, year.start, year.stop, year.step) == (
         "year", True, 0, 364 * 86400, 86400)
     assert year.labels == tuple(CMU.labels) and year.offsets == tuple(CMU.offsets)
+    night = page.slider_cycle(WEBCAM, wrap=True)  # --wrap: across the night as well
+    assert (night.wraps, night.start, night.stop) == (True, 0, 86400 - 60)
 
 
 def test_colour_range_holds_every_value_of_every_curve():
@@ -212,7 +214,7 @@ def test_keypoints_command_writes_the_page_of_its_own_results(image, tmp_path, c
     cv2.imwrite(str(photo), image[:, :, ::-1])
     target = tmp_path / "pages" / "photo.html"
     rc = command.main([str(photo), "--predictor", "webcam_clipart-synthetic", "--captured",
-                       "2024-06-01 09:30", "--at", "2024-06-01 15:00", "--out",
+                       "2024-06-01 09:30", "--at", "2024-06-01 22:00", "--wrap", "--out",
                        str(tmp_path / "out"), "--html", str(target), "--max-keypoints", "50"])
     assert rc == 0, capsys.readouterr().err
     assert f"and the page {target}" in capsys.readouterr().out
@@ -223,7 +225,9 @@ def test_keypoints_command_writes_the_page_of_its_own_results(image, tmp_path, c
         np.testing.assert_allclose(d["xy"], z["xy"], atol=0.005)
         np.testing.assert_allclose(page.decode_curves(d["curves"], *z["curves"].shape),
                                    z["curves"], atol=1e-5)
-    assert d["start"] == 15 * 3600 and d["model"] == "webcam_clipart-synthetic"
+    # --wrap: the slider covers the night too, and starts at --at.
+    assert d["cycle"]["wraps"] and d["start"] == 22 * 3600
+    assert d["model"] == "webcam_clipart-synthetic"
     assert d["title"] == f"photo.png: {len(d['xy'])} keypoints"
 
 
@@ -377,21 +381,23 @@ def test_in_a_browser_the_slider_recolours_the_keypoints_and_a_click_draws_a_cur
 
 @needs_browser
 def test_in_a_browser_the_page_reads_the_curves_as_predict_does(tmp_path, image):
-    """Linear between timestamps; a year wraps from Dec 21 round to Mar 04, a day does not."""
+    """Linear between timestamps; a year wraps from Dec 21 round to Mar 04, a day only when
+    asked (``--wrap``)."""
     from rp_jax import predict
 
     rng = np.random.default_rng(2)
-    for schedule, times in ((WEBCAM, ["09:47", "18:00"]), (CMU, ["01-15", "06-30"])):
+    for schedule, wrap, times in ((WEBCAM, None, ["09:47", "18:00"]), (WEBCAM, True, ["22:00"]),
+                                  (CMU, None, ["01-15", "06-30"])):
         xy = _points(5, seed=3)
         curves = rng.random((5, schedule.num_timestamps))
-        path = page.write_page(tmp_path / f"{schedule.name}.html", page.keypoints_page(
-            image, xy, curves, schedule))
+        path = page.write_page(tmp_path / f"{schedule.name}_{wrap}.html", page.keypoints_page(
+            image, xy, curves, schedule, wrap=wrap))
         for t in times:
             state = _state(tmp_path, path, f"t={t}&click={xy[2, 0]:.2f},{xy[2, 1]:.2f}")
             when = (dt.datetime(2024, 6, 1, *map(int, t.split(":"))) if ":" in t
                     else dt.datetime(2023, *map(int, t.split("-"))))
             assert state["selected"] == 2
-            expected = float(predict.at_time(curves[2], schedule, when))
+            expected = float(predict.at_time(curves[2], schedule, when, wrap=wrap))
             assert state["score"] == pytest.approx(expected, abs=6e-5), (schedule.name, t)
 
 

@@ -168,7 +168,7 @@ def run(
             if html is not None:
                 page.write_keypoints_page(html, rgb, kp, predictor.schedule,
                                           model=Path(model).name if model else "",
-                                          title=f"{path.name}: {len(kp)} keypoints")
+                                          title=f"{path.name}: {len(kp)} keypoints", wrap=wrap)
             kps.append(kp)
             results.append({
                 "image": str(path), "npz": str(npz), "png": None,
