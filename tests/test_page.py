@@ -318,7 +318,10 @@ WINDOW = (1200, 850)
 
 
 def _browser(tmp_path, url, *what):
+    # --no-sandbox: CI runs as root, where Chromium's sandbox refuses to start; the page is
+    # our own file. --disable-dev-shm-usage: containers' small /dev/shm crashes its renderer.
     cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+           "--disable-dev-shm-usage",
            "--no-first-run", "--force-device-scale-factor=1", f"--user-data-dir={tmp_path}/prof",
            f"--window-size={WINDOW[0]},{WINDOW[1]}", "--virtual-time-budget=5000", *what, url]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
