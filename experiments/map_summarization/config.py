@@ -46,7 +46,7 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.query_dates = ()
     m.time_bucket_minutes = 10  # queries within one such bucket share a summary
     m.ratios = (0.5, 0.6, 0.7, 0.8, 0.9)  # pruned fraction of the map
-    # The recipe of the recommended ``rp`` row (experiment.RP_RECIPES: which predictor,
+    # The recipe of the recommended ``rp`` row (methods.RP_RECIPES: which predictor,
     # which rule) and extra recipes reported as rows of their own. ``rp`` is chosen on the
     # held-out training slice 6, never on the test slice: the recipe with the highest mean
     # accuracy over the five ratios at (0.5 m, 5 deg) and (5 m, 10 deg), pooled over seeds
@@ -102,7 +102,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
     import datetime as dt
     from pathlib import Path
 
-    from experiments.map_summarization import experiment
+    from experiments.map_summarization import methods as rows
     from experiments.map_summarization import train as mapsum_train
     from experiments.sec4a.config import validate as validate_training
     from rp_jax import train
@@ -128,7 +128,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
         expect(ok, field, f"{what} {bound}")
 
     try:
-        methods = experiment.methods_of(config)
+        rows.methods_of(config)  # an unknown recipe is a config error
     except ValueError as e:
         raise train.ConfigError(str(e)) from None
     try:
@@ -206,8 +206,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
 
     validate_training(mapsum_train.rp_config(config),
                       None if workdir is None else workdir / "rp")
-    predictors = {recipe[0] for recipe in (experiment.recipe_of(k, config) for k in methods)
-                  if recipe}
+    predictors = set(rows.predictors_needed(config))
     if "cmu" in predictors:
         validate_training(mapsum_train.cmu_config(config), None if workdir is None
                           else workdir / f"rp_cmu_without_slice{m.slice}")

@@ -3,8 +3,13 @@
 A query is localized at a threshold when its estimated pose is within that distance and
 angle of the ground truth (the three thresholds of the visual-localization benchmark).
 ``pool`` gathers every seed's outcomes: accuracy per method, ratio and threshold with
-bootstrap intervals, paired counts and McNemar's exact test against ``REFERENCE``
-(K-cover), the date oracle against the time-agnostic one, and the inlier AUCs.
+bootstrap intervals; against ``REFERENCE`` (K-cover) the paired difference with a 95 %
+interval from a bootstrap of whole (world seed, date) clusters (``paired_interval``: the
+queries of one world and date are neighbouring positions under one day's light, not
+independent draws, so significance claims use this interval), and, exploratory, the paired
+counts with McNemar's exact test (which assumes independent queries); the date oracle
+against its matched time-agnostic twin the same way; the inlier AUCs of each row's score
+and of what actually selects (``selecting_auc``).
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import numpy as np
 from rp_jax.localize import pose_error
 from rp_jax.mapsum.statistics import (
     bootstrap_interval,
+    clustered_paired_interval,
     mcnemar_exact,
     paired_counts,
 )
@@ -49,6 +55,12 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     if n == 0:
         raise ValueError("no query has a ground-truth pose: nothing to score")
 
+    # The clusters of the paired bootstrap: one per (world seed, date).
+    clusters = np.concatenate([
+        [f"{s.get('seed', k)}/{d}" for d in s["queries"]["dates"]]
+        for k, s in enumerate(per_seed)
+    ])[posed]
+
     def stacked(method: str, ratio: str) -> np.ndarray:
         a = np.concatenate(
             [
@@ -58,14 +70,21 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         )
         return a[posed]
 
-    accuracy, interval, paired = {}, {}, {}
+    def clustered(a: np.ndarray, b: np.ndarray) -> list[float]:
+        lo, hi = clustered_paired_interval(a, b, clusters, resamples=resamples, seed=0)
+        return [round(lo, 2), round(hi, 2)]
+
+    accuracy, interval, paired, paired_interval = {}, {}, {}, {}
     for method in methods:
         accuracy[method], interval[method], paired[method] = {}, {}, {}
+        paired_interval[method] = {}
         for ratio in ratios:
             a = stacked(method, ratio)
             ref = stacked(REFERENCE, ratio)
             accuracy[method][ratio], interval[method][ratio], paired[method][ratio] = {}, {}, {}
+            paired_interval[method][ratio] = {}
             for j, th in enumerate(THRESHOLD_KEYS):
+                paired_interval[method][ratio][th] = clustered(a[:, j], ref[:, j])
                 accuracy[method][ratio][th] = round(100.0 * float(a[:, j].mean()), 2)
                 lo, hi = bootstrap_interval(a[:, j], resamples=resamples, seed=0)
                 interval[method][ratio][th] = [round(lo, 2), round(hi, 2)]
@@ -87,6 +106,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
                     "only_date": only_date,
                     "only_agnostic": only_agnostic,
                     "p": mcnemar_exact(only_date, only_agnostic),
+                    "interval": clustered(a[:, j], b[:, j]),
                 }
     # Each candidate recipe paired with ``rp`` as well (issue 17: rp_conditional against rp).
     paired_rp: dict = {}
@@ -109,6 +129,11 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     full_acc = {
         th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)
     }
+    selecting_auc = {}
+    for method in methods:
+        vals = [s.get("selecting_auc", {}).get(method) for s in per_seed]
+        vals = [v for v in vals if v is not None]
+        selecting_auc[method] = round(float(np.mean(vals)), 4) if vals else None
     auc = {}
     auc_per_date: dict[str, dict[str, float | None]] = {}
     for method in methods:
@@ -147,10 +172,12 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         "accuracy": accuracy,
         "interval": interval,
         "paired": paired,
+        "paired_interval": paired_interval,
         "oracle_date_vs_agnostic": oracle_gap,
         "paired_vs_rp": paired_rp,
         "full_map_accuracy": full_acc,
         "inlier_auc": auc,
+        "selecting_auc": selecting_auc,
         "inlier_auc_per_date": auc_per_date,
         "image_coverage": coverage,
         "accuracy_per_date": per_date,

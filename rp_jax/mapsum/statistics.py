@@ -162,12 +162,11 @@ def inlier_auc(score: np.ndarray, positive: np.ndarray) -> float | None:
 def image_coverage(map_points: MapPoints, keep: np.ndarray) -> tuple[int, float]:
     """(min, median) number of kept points seen by each database image of the map."""
     keep = np.asarray(keep, bool)
-    ids = sorted(int(i) for i in map_points.image_names)
-    if not ids:
+    ids = np.sort(np.fromiter((int(i) for i in map_points.image_names), np.int64))
+    if not len(ids):
         return 0, 0.0
-    pos = {i: k for k, i in enumerate(ids)}
     seen = keep[map_points.obs_point]
-    counts = np.zeros(len(ids), np.int64)
-    rows = np.fromiter((pos[int(i)] for i in map_points.obs_image_id[seen]), np.int64)
-    np.add.at(counts, rows, 1)
+    # Vectorized (it runs once per summary: per query for a per-query row).
+    rows = np.searchsorted(ids, np.asarray(map_points.obs_image_id, np.int64)[seen])
+    counts = np.bincount(rows, minlength=len(ids))[: len(ids)]
     return int(counts.min()), float(np.median(counts))

@@ -23,8 +23,10 @@ METHODS = [
     "kcover",
     "random",
     "most_observed",
+    "maplab",
     "oracle_agnostic",
     "oracle_date",
+    "oracle_inliers",
 ]
 RATIOS = ["0.5", "0.7", "0.9"]
 THRESHOLDS = ["0.25m_2deg", "0.5m_5deg", "5m_10deg"]
@@ -156,6 +158,10 @@ def test_pool_scores_posed_queries_only_and_pairs_them():
         "only_kcover": 0,
         "p": 0.5,
     }
+    # Two clusters (seed A's and seed B's date), each +1 of 2 posed queries: +50 points
+    # whichever clusters a resample draws.
+    assert pooled["paired_interval"]["rp"]["0.5"]["5m_10deg"] == [50.0, 50.0]
+    assert pooled["paired_interval"]["kcover"]["0.5"]["5m_10deg"] == [0.0, 0.0]
     with pytest.raises(ValueError, match="no query has a ground-truth pose"):
         mexp.pool([_seed_result([False], [ok], [ok], ["2010-09-01"])], ["0.5"])
 
@@ -283,7 +289,8 @@ def test_pool_pairs_the_two_oracles():
     a["outcomes"]["oracle_date"] = {"0.5": [ok, ok, ok, no]}
     a["outcomes"]["oracle_agnostic"] = {"0.5": [no, no, ok, ok]}
     gap = mexp.pool([a], ["0.5"], resamples=50)["oracle_date_vs_agnostic"]["0.5"]["5m_10deg"]
-    assert gap == {"only_date": 2, "only_agnostic": 1, "p": 1.0}
+    # One world and one date: one cluster, so the interval is the difference itself.
+    assert gap == {"only_date": 2, "only_agnostic": 1, "p": 1.0, "interval": [25.0, 25.0]}
 
 
 @pytest.mark.slow
@@ -401,3 +408,103 @@ def test_report_pairs_each_candidate_with_rp():
     said = report.findings_vs_rp(metrics, {"rp_conditional_kcover": "cond"})
     assert "more queries than rp at no ratio, fewer at 0.9" in said[0]  # 0.5m_5deg
     assert "more queries than rp at 0.9, fewer at none" in said[1]  # 5m_10deg
+
+
+def _tiny_context(dates, posed, hits, n_points=4):
+    """A WorldContext of a map of ``n_points`` single-observation points and the given
+    queries' re-detections (no images needed: the oracle rows read only these)."""
+    from experiments.map_summarization import methods
+
+    mp = MapPoints(np.zeros((n_points, 3)), np.arange(n_points) + 1, np.arange(n_points),
+                   np.ones(n_points, int), np.arange(n_points), np.zeros((n_points, 2)),
+                   image_names={1: "db.jpg"})
+    config, _ = parse(["--size", "tiny"])
+    queries = [{"date": d, "pose": (np.eye(3), np.zeros(3)) if p else None,
+                "bucket": dt.datetime.combine(d, dt.time(10))} for d, p in zip(dates, posed)]
+    return methods.WorldContext(config=config, seed=0, map_points=mp,
+                                parts=np.zeros(n_points, np.int64),
+                                point_descriptors=np.zeros((n_points, 128)), queries=queries,
+                                hits=[np.asarray(h, np.int64) for h in hits])
+
+
+def test_oracle_rows_never_score_a_query_with_its_own_redetection():
+    """The own-date oracle row: query 0 alone re-detects point 0, so point 0 scores below
+    the points the other query of its date re-detects (the old row counted every posed
+    query of the date, the query included); the matched agnostic row sees one query of
+    another date, as many as the date oracle sees."""
+    from experiments.map_summarization import methods
+
+    a, b = dt.date(2010, 9, 1), dt.date(2011, 7, 28)
+    ctx = _tiny_context([a, a, b, b], [True] * 4, [[0], [1, 2], [3], [3]])
+    date_row, agnostic_row = methods.ROWS["oracle_date"], methods.ROWS["oracle_agnostic"]
+    assert methods.per_of(date_row, {}) == "query"
+    s0 = date_row.score(ctx, methods.At(ctx.queries[0]["bucket"], a, 0))
+    np.testing.assert_array_equal(np.floor(s0), [0, 1, 1, 0])  # the count, less the tiebreak
+    s1 = date_row.score(ctx, methods.At(ctx.queries[1]["bucket"], a, 1))
+    np.testing.assert_array_equal(np.floor(s1), [1, 0, 0, 0])
+    keep = date_row.select(ctx, date_row, 0.5, methods.At(ctx.queries[0]["bucket"], a, 0))
+    assert not keep[0] and keep[1] and keep[2]
+    s = agnostic_row.score(ctx, methods.At(ctx.queries[0]["bucket"], a))
+    np.testing.assert_array_equal(np.floor(s), [0, 0, 0, 1])  # one query of date b
+    with pytest.raises(ValueError, match="one query at a time"):
+        date_row.score(ctx, methods.At(ctx.queries[0]["bucket"], a))
+
+
+def test_the_registry_names_every_row_of_a_run_once():
+    from experiments.map_summarization import methods
+
+    config, _ = parse(["--size", "tiny"])
+    names = methods.methods_of(config)
+    assert names == METHODS and len(set(names)) == len(names)
+    labels = methods.labels_of(config)
+    assert labels["rp"].startswith("RP (recommended: ") and set(labels) == set(names)
+    assert methods.oracles_of(config) == ["oracle_agnostic", "oracle_date", "oracle_inliers"]
+    assert methods.predictors_needed(config) == ["robotcar", "cmu"]  # rp_cmu_kcover
+    with pytest.raises(ValueError, match="already registered"):
+        methods.register(methods.ROWS["kcover"])
+    with pytest.raises(ValueError, match="per='hourly'"):
+        methods.Row("x", "x", "method", "hourly", methods.top_per_part)
+
+
+def _metrics_for_report():
+    """A hand-made metrics dict: rp above K-cover at 80 and 90 % at (5 m, 10 deg), its
+    intervals entirely above zero there, K-cover 40 % and rp 76 % of a 95 % full map."""
+    ratios, ths = ["0.5", "0.9"], THRESHOLDS
+    acc = {"rp": {"0.5": 90.0, "0.9": 76.0}, "kcover": {"0.5": 89.0, "0.9": 40.0}}
+    ivl = {"rp": {"0.5": [-1.0, 3.0], "0.9": [20.0, 50.0]}, "kcover": {"0.5": [0, 0],
+                                                                      "0.9": [0, 0]}}
+    return {
+        "ratios": ratios, "thresholds": list(ths), "methods": ["rp", "kcover"],
+        "reference": "kcover", "recommended": "rp", "queries": 40, "seeds": [0],
+        "labels": {"rp": "RP (recommended)", "kcover": "K-cover"},
+        "accuracy": {m: {r: {t: acc[m][r] for t in ths} for r in ratios} for m in acc},
+        "interval": {m: {r: {t: [acc[m][r] - 5, acc[m][r] + 5] for t in ths} for r in ratios}
+                     for m in acc},
+        "paired": {m: {r: {t: {"only_method": 3, "only_kcover": 1, "p": 0.6} for t in ths}
+                       for r in ratios} for m in acc},
+        "paired_interval": {m: {r: {t: ivl[m][r] for t in ths} for r in ratios} for m in acc},
+        "full_map_accuracy": {t: 95.0 for t in ths},
+        "inlier_auc": {"rp": 0.7, "kcover": None},
+        "selecting_auc": {"rp": 0.81, "kcover": 0.6},
+    }
+
+
+def test_tables_markdown_and_the_bar_from_a_metrics_dict():
+    from experiments.map_summarization import report
+
+    metrics = _metrics_for_report()
+    text = report.tables_markdown(metrics)
+    assert "Primary comparison: **RP (recommended)** (`rp`)" in text
+    assert "| 5m_10deg | +1.0 [-1.0, +3.0] | +36.0 [+20.0, +50.0] |" in text
+    assert "| RP (recommended) | 90.0 [85.0, 95.0] | 76.0* [71.0, 81.0] |" in text
+    assert "| RP (recommended) | 0.700 | 0.810 |" in text
+    bar = report.bar_check(metrics)
+    # Above at one ratio per threshold only, and 76 of 95 % = 80 %: the second part fails.
+    assert bar[0] == "- The bar (NOT met):"
+    assert "above K-cover at two or more ratios at one threshold: no" in bar[2]
+    assert "76.0 of 95.0 % = 80 %" in bar[3] and bar[3].startswith("  - keeps >= 80 %")
+    assert ": yes" in bar[1] and ": yes" in bar[4]
+    metrics["paired_interval"]["rp"]["0.5"]["5m_10deg"] = [0.5, 3.0]
+    assert report.bar_check(metrics)[0] == "- The bar (met):"
+    metrics["paired_interval"]["rp"]["0.5"]["0.5m_5deg"] = [-4.0, -0.5]
+    assert "below at 0.5 0.5m_5deg" in report.bar_check(metrics)[1]
