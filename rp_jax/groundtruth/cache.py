@@ -8,9 +8,14 @@ Work is cached so that an interrupted build resumes where it stopped:
   points, descriptors, categories); a re-run skips detection for these while the image
   file's bytes are the same (SHA-1: size and mtime can lie), and reads the categories
   again when the category map's bytes changed.
-* ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts and a
-  fingerprint of the captures, their image files' and category maps' bytes): the records
-  of a finished viewpoint; a re-run with the same captures returns it without recomputing.
+* ``<cache_dir>/labels/<config tag>/<viewpoint>.npz`` (+ ``.json`` with counts, the
+  source images and a fingerprint of the captures, their image files' and category maps'
+  bytes): the records of a finished viewpoint; a re-run with the same captures and sources
+  returns it without recomputing.
+* ``<cache_dir>/labels/<config tag>/<viewpoint>.blocks/<first>-<count>-<key>.npz``: the
+  records of one finished block of source images (``rp_jax.groundtruth.blocks``; the key
+  hashes the fingerprint and the block's images), removed once the viewpoint's file is
+  written.
 * ``<cache_dir>/outcomes/<config tag>/<viewpoint>.npz``: the per-image-pair
   outcomes the records' labels average (``viewpoint.OUTCOME_KEYS``), compressed (mostly
   zeros), with the same fingerprint inside; absent for viewpoints labelled before they

@@ -1,12 +1,18 @@
 """Ground truth of one viewpoint, end to end (Sec. III-D, Sec. IV-A-1, Fig. 4).
 
-For every readable image of a viewpoint: detect interest points, cut their 64x64x3 patches;
-then match every interest point against every other image (nearest neighbour + ratio
-test), verify the matches geometrically (static camera, known poses, or a robust
-fundamental matrix), and turn the inliers into the repeatability vector y^j with its mask.
+For every readable image of a viewpoint: detect interest points; then, for the viewpoint's
+source images (``config.max_sources`` of them, spread over its timestamps and cycles, or
+every image: ``rp_jax.groundtruth.sources``), match every interest point against every other
+image (nearest neighbour + ratio test), verify the matches geometrically (static camera,
+known poses, or a robust fundamental matrix), and turn the inliers into the repeatability
+vector y^j with its mask; cut the 64x64x3 patches of the records kept. The sources are
+labelled in blocks, streamed image by image (``rp_jax.groundtruth.blocks``), so memory does
+not grow with the viewpoint and a block is a unit of parallel work
+(``label_viewpoint_block``).
 
 Work is cached so that an interrupted build resumes where it stopped: the features of each
-image (``rp_jax.groundtruth.image_features``) and the records of each finished viewpoint
+image (``rp_jax.groundtruth.image_features``), the records of each finished block of
+sources, and those of each finished viewpoint, which then replace its blocks
 (``rp_jax.groundtruth.cache`` has the layout and the keys). Neither cache holds the 64x64x3
 patches (95 % of the bytes): they are cut from the images when the records are returned
 (``attach_patches``), and a caller that keeps only some records (the dataset builders keep
@@ -14,10 +20,10 @@ patches (95 % of the bytes): they are cut from the images when the records are r
 the kept rows only. Cutting is deterministic, so the records are identical to cutting at
 detection time.
 
-Every file is written atomically (temporary name, then ``os.replace``). The per-viewpoint
+Every file is written atomically (temporary name, then ``os.replace``). The per-block
 function is pure given its inputs (callables must be picklable, e.g. module-level
-functions), so ``label_viewpoints`` can fan viewpoints out to processes, and the same
-function maps onto an Apache Beam ``Map`` later.
+functions), so ``label_viewpoints`` fans blocks of one or many viewpoints out to processes,
+and the dataset builders map the same function in an Apache Beam pipeline.
 
 Beside the records, ``label_viewpoint_outcomes`` returns what the labels average: the
 outcome of every interest point in every image of its viewpoint (inlier, not, unknown;
