@@ -1,0 +1,125 @@
+"""Where the suite's time goes: wall and CPU seconds per test phase and per fixture set-up.
+
+A pytest plugin, off unless asked for::
+
+    RP_JAX_TEST_TIMES=/tmp/times pytest -p tests._timing -n 2 --dist loadfile
+    python -m tests._timing /tmp/times     # the top twenty tests, files and fixtures
+
+Each process (every xdist worker) appends JSON lines to ``<dir>/<worker>.jsonl``: one per
+test phase (set-up, call, tear-down) and one per fixture set-up, each with its wall seconds
+and its CPU seconds (this process's, all threads, plus those of the child processes it
+waited for in the meantime). On a machine others share, wall time follows the load; CPU
+time much less so, which is why both are kept.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import os
+import resource
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+TIMES_ENV = "RP_JAX_TEST_TIMES"
+
+
+def _cpu() -> float:
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
+class _Recorder:
+    def __init__(self, folder: Path):
+        folder.mkdir(parents=True, exist_ok=True)
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        self._file = open(folder / f"{worker}-{os.getpid()}.jsonl", "a")  # noqa: SIM115
+
+    def write(self, **row) -> None:
+        self._file.write(json.dumps(row) + "\n")
+        self._file.flush()
+
+
+_recorder: _Recorder | None = None
+
+
+def pytest_configure(config):
+    global _recorder
+    folder = os.environ.get(TIMES_ENV)
+    if folder:
+        _recorder = _Recorder(Path(folder))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_fixture_setup(fixturedef, request):
+    if _recorder is None:
+        yield
+        return
+    wall, cpu = time.perf_counter(), _cpu()
+    yield
+    _recorder.write(kind="fixture", name=fixturedef.argname, scope=fixturedef.scope,
+                    file=request.node.nodeid.split("::")[0],
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu)
+
+
+def _phase(item, when):
+    if _recorder is None:
+        yield
+        return
+    wall, cpu = time.perf_counter(), _cpu()
+    yield
+    _recorder.write(kind="test", name=item.nodeid, when=when,
+                    file=item.nodeid.split("::")[0],
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item):
+    yield from _phase(item, "setup")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    yield from _phase(item, "call")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item):
+    yield from _phase(item, "teardown")
+
+
+def summary(folder: Path, top: int = 20) -> str:
+    """The ``top`` tests, files and fixtures by wall time, with their CPU time."""
+    rows = [json.loads(line) for f in sorted(folder.glob("*.jsonl"))
+            for line in f.read_text().splitlines() if line]
+    tests: dict = collections.defaultdict(lambda: [0.0, 0.0])
+    files: dict = collections.defaultdict(lambda: [0.0, 0.0])
+    fixtures: dict = collections.defaultdict(lambda: [0.0, 0.0, 0])
+    for r in rows:
+        if r["kind"] == "test":
+            for table, key in ((tests, r["name"]), (files, r["file"])):
+                table[key][0] += r["wall"]
+                table[key][1] += r["cpu"]
+        else:
+            f = fixtures[f"{r['file']}::{r['name']} ({r['scope']})"]
+            f[0] += r["wall"]
+            f[1] += r["cpu"]
+            f[2] += 1
+    total_wall = sum(v[0] for v in files.values())
+    total_cpu = sum(v[1] for v in files.values())
+    out = [f"{len(tests)} tests in {len(files)} files: {total_wall:.0f} s wall, "
+           f"{total_cpu:.0f} s CPU summed over the workers"]
+    for title, table in (("tests (set-up + call + tear-down)", tests), ("files", files),
+                         ("fixture set-ups", fixtures)):
+        out.append(f"\nTop {top} {title}: wall s, CPU s")
+        for key, v in sorted(table.items(), key=lambda kv: -kv[1][0])[:top]:
+            extra = f" x{v[2]}" if len(v) > 2 and v[2] > 1 else ""
+            out.append(f"{v[0]:8.1f} {v[1]:8.1f}  {key}{extra}")
+    return "\n".join(out)
+
+
+if __name__ == "__main__":
+    print(summary(Path(sys.argv[1]), int(sys.argv[2]) if len(sys.argv) > 2 else 20))
