@@ -132,15 +132,16 @@ def training_slices(config, seed: int = 0) -> list[int]:
 # ----------------------------------------------------------------------------- features
 
 
-def map_point_table(config, rec, map_points, obs, point_rep: Mapping[str, np.ndarray],
-                    point_desc: np.ndarray, point_cat: np.ndarray) -> np.ndarray:
+def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
+                    point_rep: Mapping[str, np.ndarray], point_desc: np.ndarray,
+                    point_cat: np.ndarray) -> np.ndarray:
     """[P, F] raw point features of a described map (what ``evaluate_world`` builds).
 
     Args:
       config: the experiment config (``map.up_axis``, ``map.match_ratio``).
       rec: the pycolmap reference model (camera poses and sizes of the database images).
       map_points: its ``MapPoints``.
-      obs: its ``DatabaseObservations`` (per-observation descriptors).
+      obs_descriptors: [n_obs, 128] its observations' descriptors (NaN rows: none).
       point_rep: name -> [P, T] RP vectors; only ``"robotcar"`` (the paper's RP, which never
         saw a CMU slice) is read, so features mean the same on every slice.
       point_desc: [P, 128] mean descriptors.
@@ -157,9 +158,10 @@ def map_point_table(config, rec, map_points, obs, point_rep: Mapping[str, np.nda
         sizes[int(image_id)] = (w, h)
     return point_features(
         map_points, camera_centres=centres, image_sizes=sizes,
-        obs_descriptors=obs.descriptors, point_descriptors=point_desc,
+        obs_descriptors=obs_descriptors, point_descriptors=point_desc,
         repeatability={"robotcar": point_rep["robotcar"]}, point_category=point_cat,
-        up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio))
+        up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio),
+        num_retrieved=int(config.map.num_retrieved))
 
 
 def query_table(times: Sequence[dt.datetime], image_paths: Sequence[Path]) -> np.ndarray:
@@ -189,7 +191,9 @@ def _label_fingerprint(config, predictor) -> str:
     settings = {k: m.get(k) for k in keys}
     settings["data_config"] = config.input.data_config
     settings["world"] = presets.WORLD_VERSION
-    settings["features"] = 1  # bump when point_features / query_features change
+    # The labels' format (the point features are versioned apart, FEATURE_VERSION: a new
+    # version recomputes the tables from the cached observations, never re-localizes).
+    settings["features"] = 1
     h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
     for leaf in jax.tree_util.tree_leaves(predictor.params):
         h.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
@@ -239,54 +243,71 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
         read_model,
     )
     from rp_jax.mapsum.observations import describe_observations, point_categories
+    from rp_jax.mapsum.outcome_scorer import FEATURE_VERSION
 
     m = config.map
     path = Path(out_dir) / f"seed{seed}_slice{slice_id}.npz"
     fingerprint = _label_fingerprint(config, predictor)
+    cached = None
     if path.is_file():
         try:
             with np.load(path, allow_pickle=False) as z:
                 if str(z["fingerprint"]) == fingerprint:
-                    log.info("reusing %s", path)
-                    return OutcomeLabels.load(path), z["point_table"], z["query_table"]
+                    cached = {k: z[k] for k in z.files}
         except (OSError, KeyError, ValueError):
             log.warning("%s is unreadable; labelling again", path)
+    if cached is not None and int(cached.get("feature_version", 1)) == FEATURE_VERSION:
+        log.info("reusing %s", path)
+        return OutcomeLabels.load(path), cached["point_table"], cached["query_table"]
     root = _slice_root(config, seed, slice_id, progress)
     sparse = root / f"slice{slice_id}" / "sparse"
     rec = read_model(sparse)
     mp = map_points_from_reconstruction(rec)
     if mp.num_points == 0:
         raise ValueError(f"{sparse}: the map has no 3D points")
-    obs = describe_observations(rec, mp, root / f"slice{slice_id}" / "database", predictor,
-                                root=root, max_keypoints=m.max_keypoints,
-                                associate_px=m.associate_px, describe_on=m.describe_on,
-                                progress=progress)
-    point_desc = mean_per_point(obs.descriptors[obs.associated], mp.obs_point[obs.associated],
-                                mp.num_points)
-    point_table = map_point_table(config, rec, mp, obs,
-                                  {"robotcar": point_repeatability(mp, obs.repeatability)},
-                                  point_desc, point_categories(mp, obs.category))
-    index, vocabulary = build_vlad_index(obs.image_descriptors, num_words=m.vlad_words,
-                                         seed=seed)
-    queries = load_queries(root, slice_id, None, m.max_keypoints, vocabulary, progress,
-                           reference={im.name for im in rec.images.values()})
-    lmap = LocalizationMap(mp, point_desc, index)
-    results = [localize(q["query"], lmap, num_retrieved=m.num_retrieved, ratio=m.match_ratio,
-                        reprojection_error=m.reprojection_error, min_inliers=m.min_inliers,
-                        ransac_iterations=m.ransac_iterations, seed=seed) for q in queries]
-    labels = labels_of_queries(
-        results, [lmap.points_seen_by(r.retrieved) for r in results],
-        [q["pose"] for q in queries], [q["query"].name for q in queries],
-        [q["time"].isoformat(timespec="seconds") for q in queries],
-        group=f"seed{seed}/slice{slice_id}")
-    qtable = query_table([q["time"] for q in queries], [q["image_path"] for q in queries])
+    if cached is not None and "obs_descriptors" in cached:
+        # Same labels, newer point features: recomputed from the cached observations.
+        obs_desc, obs_rep = cached["obs_descriptors"], cached["obs_repeatability"]
+        obs_cat = cached["obs_category"]
+    else:
+        obs = describe_observations(rec, mp, root / f"slice{slice_id}" / "database",
+                                    predictor, root=root, max_keypoints=m.max_keypoints,
+                                    associate_px=m.associate_px, describe_on=m.describe_on,
+                                    progress=progress)
+        obs_desc, obs_rep, obs_cat = obs.descriptors, obs.repeatability, obs.category
+    described = np.all(np.isfinite(obs_desc), axis=1)
+    point_desc = mean_per_point(obs_desc[described], mp.obs_point[described], mp.num_points)
+    point_table = map_point_table(config, rec, mp, obs_desc,
+                                  {"robotcar": point_repeatability(mp, obs_rep)},
+                                  point_desc, point_categories(mp, obs_cat))
+    if cached is not None:
+        labels, qtable = OutcomeLabels.load(path), cached["query_table"]
+    else:
+        index, vocabulary = build_vlad_index(obs.image_descriptors, num_words=m.vlad_words,
+                                             seed=seed)
+        queries = load_queries(root, slice_id, None, m.max_keypoints, vocabulary, progress,
+                               reference={im.name for im in rec.images.values()})
+        lmap = LocalizationMap(mp, point_desc, index)
+        results = [localize(q["query"], lmap, num_retrieved=m.num_retrieved,
+                            ratio=m.match_ratio, reprojection_error=m.reprojection_error,
+                            min_inliers=m.min_inliers, ransac_iterations=m.ransac_iterations,
+                            seed=seed) for q in queries]
+        labels = labels_of_queries(
+            results, [lmap.points_seen_by(r.retrieved) for r in results],
+            [q["pose"] for q in queries], [q["query"].name for q in queries],
+            [q["time"].isoformat(timespec="seconds") for q in queries],
+            group=f"seed{seed}/slice{slice_id}")
+        qtable = query_table([q["time"] for q in queries], [q["image_path"] for q in queries])
     arrays = {k: np.asarray(getattr(labels, k)) for k in
               ("query", "point", "candidate", "inlier", "pose_correct", "localized")}
     arrays.update({k: np.asarray(getattr(labels, k)).astype(str)
                    for k in ("names", "times", "group")})
     with files.replacing(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays, point_table=point_table, query_table=qtable,
-                            fingerprint=np.asarray(fingerprint))
+                            fingerprint=np.asarray(fingerprint),
+                            feature_version=np.asarray(FEATURE_VERSION),
+                            obs_descriptors=obs_desc, obs_repeatability=obs_rep,
+                            obs_category=obs_cat)
     log.info("seed %d slice %d: %d queries (%d correct), %d pairs, %d positives", seed,
              slice_id, labels.num_queries, labels.pose_correct.sum(), labels.num_pairs,
              labels.inlier.sum())
@@ -301,7 +322,8 @@ FEATURE_GROUPS = {
     "geometry": ("image_x", "image_y", "log_track_length", "log_depth", "view_angle_spread",
                  "height"),
     "descriptor": ("descriptor_spread", "described_share", "distinctiveness",
-                   "self_match_share", "self_match_margin"),
+                   "self_match_share", "self_match_margin", "near_match_share",
+                   "near_match_margin", "worst_near_margin"),
     "category": ("category_",),
 }
 
@@ -533,7 +555,7 @@ def _world_scores(kind: str):
 
         obs = ctx.extra["observations"]
         table = ctx.cached("outcome_point_table", lambda: map_point_table(
-            ctx.config, ctx.extra["reconstruction"], ctx.map_points, obs,
+            ctx.config, ctx.extra["reconstruction"], ctx.map_points, obs.descriptors,
             ctx.extra["point_rep"], ctx.point_descriptors,
             point_categories(ctx.map_points, obs.category)))
         first: dict = {}

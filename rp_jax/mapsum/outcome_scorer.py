@@ -62,6 +62,8 @@ __all__ = [
     "train_step",
 ]
 
+# Bump when point_features or query_features change: cached tables are recomputed.
+FEATURE_VERSION = 2
 SIFT_NORM = 512.0  # OpenCV SIFT descriptors are scaled to norm ~512
 # Category slots of the one-hot: the six known categories and "unknown".
 _CATEGORY_IDS = sorted(categories.NAMES)
@@ -69,14 +71,16 @@ _CATEGORY_IDS = sorted(categories.NAMES)
 
 def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
                   point_descriptors: np.ndarray, ratio: float = 0.8,
-                  chunk: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+                  chunk: int = 2048, competitors: Mapping[int, Sequence[int]] | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How each point fares in 2D-3D matching against the points its images see.
 
     Sec. V-B matches a query keypoint to the candidate points (those the retrieved images
     see) by the nearest mean descriptor and the ratio test. Here every observation of the
     map (with a descriptor) plays the query keypoint and the points its own database image
     sees play the candidates: a point whose observations find it, and not a neighbour, by
-    a clear ratio is one the ratio test lets through.
+    a clear ratio is one the ratio test lets through. ``competitors`` widens the candidates
+    to the points of several images, as retrieval of K images does.
 
     Args:
       map_points: the map.
@@ -84,11 +88,14 @@ def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
       point_descriptors: [P, D] mean descriptor of each point (NaN rows: none).
       ratio: Lowe's ratio of the matching.
       chunk: observation rows per distance block.
+      competitors: database image id -> the image ids whose points are the candidates of
+        its observations (None: the image's own points).
 
     Returns:
       ([P] share of the point's described observations whose nearest point is the point
       itself and passes the ratio test, [P] mean over them of d(own) / d(nearest other point)
-      clipped to [0, 2]); NaN for a point without a described observation.
+      clipped to [0, 2], [P] the largest such ratio: its worst observation); NaN for a point
+      without a described observation.
     """
     obs = np.asarray(obs_descriptors, np.float32)
     pts = np.asarray(point_descriptors, np.float32)
@@ -99,8 +106,11 @@ def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
     margin = np.full(n_obs, np.nan)
     has_obs = np.all(np.isfinite(obs), axis=1)
     has_pt = np.all(np.isfinite(pts), axis=1)
-    for rows in map_points.rows_by_image().values():
-        seen = np.unique(map_points.obs_point[rows])
+    by_image = map_points.rows_by_image()
+    for image_id, rows in by_image.items():
+        images = [image_id] if competitors is None else competitors[image_id]
+        seen = np.unique(np.concatenate(
+            [map_points.obs_point[by_image[i]] for i in images if i in by_image]))
         seen = seen[has_pt[seen]]
         rows = rows[has_obs[rows] & has_pt[map_points.obs_point[rows]]]
         if len(seen) < 2 or len(rows) == 0:
@@ -133,7 +143,9 @@ def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
                                   minlength=n_pts) / counts
     share[counts == 0] = np.nan
     mean_margin[counts == 0] = np.nan
-    return share, mean_margin
+    worst = np.full(n_pts, np.nan)
+    np.fmax.at(worst, map_points.obs_point[ok], margin[ok])
+    return share, mean_margin, worst
 
 
 def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
@@ -143,7 +155,8 @@ def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
         names += [f"rp_{k}_{j}" for j in range(t)] + [f"rp_{k}_mean", f"rp_{k}_spread"]
     names += ["image_x", "image_y", "log_track_length", "log_depth", "view_angle_spread",
               "height", "descriptor_spread", "described_share", "distinctiveness",
-              "self_match_share", "self_match_margin"]
+              "self_match_share", "self_match_margin", "near_match_share",
+              "near_match_margin", "worst_near_margin"]
     names += [f"category_{categories.NAMES[c]}" for c in _CATEGORY_IDS] + ["category_unknown"]
     return names
 
@@ -159,6 +172,7 @@ def point_features(
     point_category: np.ndarray | None = None,
     up_axis: int = 2,
     ratio: float = 0.8,
+    num_retrieved: int = 5,
 ) -> np.ndarray:
     """[P, F] float32 features of every map point (columns: ``point_feature_names``).
 
@@ -172,6 +186,9 @@ def point_features(
       point_category: [P] semantic class (``point_categories``; -1 or None: unknown).
       up_axis: world axis pointing up (-1: unknown; the height is then 0).
       ratio: Lowe's ratio of localization's 2D-3D matching (``self_matching``).
+      num_retrieved: images retrieved per query in localization: the ``near_*`` columns
+        replay the matching against the points of an image and its ``num_retrieved - 1``
+        nearest database images (by camera centre), the candidates a query there meets.
 
     Missing values (a point without a described observation) are 0; the share of described
     observations says how much the descriptor features can be trusted.
@@ -216,7 +233,14 @@ def point_features(
     with np.errstate(invalid="ignore", divide="ignore"):
         desc_spread = np.where(n_desc > 0, np.bincount(mp.obs_point, weights=dev, minlength=n)
                                / np.maximum(n_desc, 1) / SIFT_NORM, 0.0)
-    share, margin = self_matching(mp, obs_descriptors, point_descriptors, ratio=ratio)
+    share, margin, _ = self_matching(mp, obs_descriptors, point_descriptors, ratio=ratio)
+    ids = sorted(int(i) for i in camera_centres)
+    c = np.array([camera_centres[i] for i in ids], np.float64).reshape(-1, 3)
+    near = np.argsort(np.linalg.norm(c[:, None] - c[None], axis=2), axis=1, kind="stable")
+    competitors = {i: [ids[j] for j in near[k, :max(num_retrieved, 1)]]
+                   for k, i in enumerate(ids)}
+    near_share, near_margin, worst = self_matching(mp, obs_descriptors, point_descriptors,
+                                                   ratio=ratio, competitors=competitors)
     has_pt = np.all(np.isfinite(pts), axis=1)
     distinct = np.zeros(n)
     if has_pt.sum() >= 2:
@@ -230,6 +254,8 @@ def point_features(
         (spread / 90.0)[:, None], height[:, None], desc_spread[:, None],
         (n_desc / count)[:, None], distinct[:, None],
         np.nan_to_num(share)[:, None], np.nan_to_num(margin, nan=2.0)[:, None],
+        np.nan_to_num(near_share)[:, None], np.nan_to_num(near_margin, nan=2.0)[:, None],
+        np.nan_to_num(worst, nan=2.0)[:, None],
         onehot.astype(np.float64),
     ]
     out = np.concatenate(cols, axis=1)

@@ -60,9 +60,19 @@ def test_self_matching_sees_a_twin_descriptor():
     mp = MapPoints(xyz=np.zeros((3, 3)), point3D_ids=np.arange(3),
                    obs_point=np.arange(3), obs_image_id=np.ones(3, np.int64),
                    obs_point2D_idx=np.arange(3), obs_xy=np.zeros((3, 2)), image_names={1: "a"})
-    share, margin = self_matching(mp, d, d)
+    share, margin, worst = self_matching(mp, d, d)
     np.testing.assert_array_equal(share, [0.0, 0.0, 1.0])
     assert margin[2] == 0.0 and margin[0] == 2.0  # d(own) = d(other) = 0: clipped ratio
+    np.testing.assert_array_equal(worst, margin)  # one observation each
+    # Point 2's twin seen by another image: alone it passes, with that image's points as
+    # competitors (retrieval of two images) it does not.
+    d4 = np.concatenate([d, d[2:3]])
+    mp2 = MapPoints(xyz=np.zeros((4, 3)), point3D_ids=np.arange(4), obs_point=np.arange(4),
+                    obs_image_id=np.array([1, 1, 1, 2]), obs_point2D_idx=np.arange(4),
+                    obs_xy=np.zeros((4, 2)), image_names={1: "a", 2: "b"})
+    alone, _, _ = self_matching(mp2, d4, d4)
+    together, _, _ = self_matching(mp2, d4, d4, competitors={1: [1, 2], 2: [2, 1]})
+    assert alone[2] == 1.0 and together[2] == 0.0
 
 
 def test_query_features_of_time_sun_and_weather():
