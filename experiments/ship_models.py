@@ -56,8 +56,7 @@ def trained_image_size(image_sizes) -> list[int]:
 def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: str,
            split: str, about: dict, data_dir: str | None = None) -> Path:
     """Writes the shipped model ``name`` from a trained ``workdir`` (see the module doc)."""
-    from rp_jax import predict
-    from rp_jax.commands import time_inputs
+    from rp_jax import predict, time_encoding
     from rp_jax.datasets import loading
 
     missing = [k for k in ABOUT_KEYS if not about.get(k)]
@@ -77,7 +76,8 @@ def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: 
     with files.replacing(folder / "sample.npz") as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **sample, predictions=pred)
     record = {"name": name, **{k: about[k] for k in ABOUT_KEYS},
-              "time_inputs": time_inputs(rp.config), "trained_image_size": size, "sample": {
+              "time_inputs": time_encoding.READS[rp.config.model.time_fields],
+              "trained_image_size": size, "sample": {
         "source": f"{dataset}/{data_config}, split {split!r}, first {len(pred)} records",
         "mae": round(sample_mae(pred, sample), 6)}}
     files.write_json(folder / "model.json", record)

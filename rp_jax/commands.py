@@ -21,6 +21,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from rp_jax import time_encoding
 from rp_jax.files import OutputExistsError
 from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
@@ -81,12 +82,8 @@ def datetime_flag(text: str) -> dt.datetime:
     return when
 
 
-# What each of the paper's time inputs (Sec. III-B; rp_jax.time_encoding.FIELDS) reads.
-TIME_INPUTS = {
-    "time_of_day": "the time of day (hour and minute), not the date",
-    "day_of_year": "the day of the year (day and month), not the hour",
-    "hour_of_year": "the time of day and the day of the year",
-}
+# What each of the paper's time inputs (Sec. III-B) reads, in words.
+TIME_INPUTS = time_encoding.READS
 # --max-size of a workdir that does not say its training resolution: the longer side of
 # Extended CMU Seasons' 1024x768 images.
 FALLBACK_MAX_SIZE = 1024

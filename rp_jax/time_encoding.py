@@ -36,6 +36,13 @@ FIELDS = {
     "hour_of_year": ("hour", "minute", "day", "month"),
 }
 ENCODINGS = ("raw", "cyclic")
+# What each representation reads of a time, in words: what the commands print and each
+# shipped model's model.json says (a time-of-day model ignores the date, and the reverse).
+READS = {
+    "time_of_day": "the time of day (hour and minute), not the date",
+    "day_of_year": "the day of the year (day and month), not the hour",
+    "hour_of_year": "the time of day and the day of the year",
+}
 # Days before the first of each month, 365-day year (29 Feb is read as 28 Feb). NumPy, not
 # jnp: a jnp array built at import time would start JAX's backend (see tests/test_imports.py).
 _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype(np.float32)
