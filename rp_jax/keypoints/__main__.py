@@ -232,10 +232,12 @@ def _parser() -> argparse.ArgumentParser:
                    f"trained_image_size: 640 for webcam_clipart-synthetic; {FALLBACK_MAX_SIZE} "
                    "for a workdir that does not say; 0: no limit). Why: the model sees "
                    "64x64-pixel patches, so the same photo at another size shows it other "
-                   "patches and scores differently. Memory: the photo is decoded whole (about "
-                   "6 bytes a pixel at the peak: 0.3 GB for 50 megapixels), then detection and "
-                   "prediction cost what a PX-pixel image does (well under 1 GB at the "
-                   "default); with 0, an 8892x6000 photo took 12.8 GB and 90 s")
+                   "patches and scores differently. Memory: the photo is decoded whole (3 bytes "
+                   "a pixel, twice at the peak: 0.3 GB for 50 megapixels), then detection and "
+                   "prediction cost what a PX-pixel image does, under 1 GB in all at the "
+                   "default; without a limit SIFT and the patches grow with the photo, several "
+                   "GB for a 12-megapixel one (python -m experiments.benchmark.large_image "
+                   "prints both on your machine)")
     p.add_argument("--features", metavar="FILE",
                    help="hloc features.h5 whose keypoints to use instead of detecting SIFT "
                    "(images looked up by name)")
