@@ -534,3 +534,10 @@ def per_of(row: Row, models: Mapping[str, object]) -> str:
         if row.predictor in models and spec.per_query(models[row.predictor]):
             return "query"
     return row.per
+
+
+# Rows scored by the outcome scorer and its time-agnostic twin (issue 26, section 2):
+# outcome, outcome_top, outcome_agnostic, outcome_agnostic_top (``outcome_scorer.ROWS``).
+from experiments.map_summarization import outcome_scorer as _outcome_scorer  # noqa: E402
+
+_outcome_scorer.register_rows()
