@@ -46,10 +46,15 @@ demo: $(INSTALLED)
 # suite (JAX compiles, OpenCV and Python are mostly one thread): 15-17 min on 2 cores
 # against 11 min 54 s to 13 min 48 s in two workers (three clean clones, 2026-12-02; README
 # "Two commands").
+# TEST_CACHE keeps what one run computes for the next: JAX's compiled programs, one folder
+# per CPU kind (docs/testing.md has what it saves, cold and warm). `make clean` empties it;
+# `make test TEST_CACHE=off` runs without it.
 PYTEST_WORKERS ?= 2
+TEST_CACHE ?= .cache/tests
 test: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
-	$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile
+	RP_JAX_TEST_CACHE=$(if $(filter off,$(TEST_CACHE)),off,$(abspath $(TEST_CACHE))) \
+		$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile
 
 # Rules in pyproject.toml ([tool.ruff.lint]); ruff reads the notebooks' code cells too.
 lint: $(INSTALLED)
@@ -60,11 +65,16 @@ lint: $(INSTALLED)
 $(BEAM_PY):
 	$(PYTHON) -m venv $(BEAM_VENV) || python3 -m venv $(BEAM_VENV)
 
+# The setuptools that `venv` puts in every new environment (65.5 with Python 3.11) would come
+# first on .venv-beam's path and hide .venv's (the test extra's setuptools>=77): with the
+# bench extra in .venv, `pip check` failed on torch's setuptools>=77.0.3. Beam needs none of
+# its own (pip builds packages in isolated environments), so it is removed and .venv's seen.
 $(BEAM_INSTALLED): pyproject.toml $(INSTALLED) | $(BEAM_PY)
 	echo "import site; site.addsitedir('$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')')" \
 		> "$$($(BEAM_PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/_rp_jax_main_venv.pth"
 	$(BEAM_PY) -m pip install --quiet $$($(BEAM_PY) -c 'import tomllib; \
 		print(*tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["beam"])')
+	$(BEAM_PY) -m pip uninstall --quiet --yes setuptools
 	$(BEAM_PY) -m pip check
 	touch $(BEAM_INSTALLED)
 
@@ -76,4 +86,4 @@ bench: $(INSTALLED)
 	$(PY) -m experiments.benchmark
 
 clean:
-	rm -rf $(VENV) $(BEAM_VENV) runs .pytest_cache
+	rm -rf $(VENV) $(BEAM_VENV) runs .pytest_cache .cache
