@@ -202,9 +202,9 @@ def _label_fingerprint(config, predictor) -> str:
 
 def _slice_root(config, seed: int, slice_id: int, progress: bool) -> Path:
     """The layout with ``slice_id``'s reference traversal and held-out traversals."""
-    from experiments.map_summarization.experiment import _cmu_root
+    from experiments.map_summarization.world import cmu_root
 
-    root = _cmu_root(config, seed)
+    root = cmu_root(config, seed)
     m = config.map
     if config.input.data_config != "real" and not m.root:
         from rp_jax.sources.synthetic.map_layout import (
