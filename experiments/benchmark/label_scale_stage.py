@@ -249,6 +249,7 @@ def run_label_scale_stage(size_name: str, repeats: int = 1, progress: bool = Tru
                      key=lambda r: r["frames"])
     return {
         "unit": "s",
+        "cpu_model": _cpu_model(),
         "ours": {"variant": "rp_jax.groundtruth.label_viewpoint, "
                             f"{DEFAULT_SOURCES} source images, static verification"},
         "peer": None,
@@ -257,6 +258,17 @@ def run_label_scale_stage(size_name: str, repeats: int = 1, progress: bool = Tru
         "renders": renders,
         **fit(rows),
     }
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), or ``"unknown"``."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown"
 
 
 def fit(rows: list[dict]) -> dict[str, Any]:

@@ -198,19 +198,17 @@ def _label_scale_table(entry: dict[str, Any]) -> list[str]:
             f"{entry['ours']['variant']}: one Webcam-like viewpoint (640x480 frames of the "
             "synthetic world, 21 per day) labelled as a dataset build labels it, in a fresh "
             "process per size (peak RSS = ru_maxrss of it and its children; CPU = user + "
-            "system of both). No peer."
+            f"system of both); {entry.get('cpu_model', 'CPU unknown')}. No peer."
         ),
         "",
-        "| frames | wall s | CPU s | CPU s per frame | peak RSS MB | records | render s |",
+        "| frames | wall s | CPU s | CPU s per frame | peak RSS MB | records | load (1 min) |",
         "|---|---|---|---|---|---|---|",
     ]
-    renders = {r["frames"]: r for r in entry.get("renders", [])}
     for row in entry["label_scale"]:
-        rendered = renders.get(row["frames"], {})
         lines.append(
             f"| {row['frames']:,} | {_fmt(row['wall_s'])} | {_fmt(row['cpu_s'])} | "
             f"{_fmt(row['cpu_s'] / row['frames'])} | {row['peak_rss_mb']:.0f} | "
-            f"{row['records']:,} | {_fmt(rendered.get('seconds'))} |"
+            f"{row['records']:,} | {_fmt(row.get('load_average_1min'))} |"
         )
     fit = entry.get("linear_fit_cpu")
     if fit:
@@ -219,6 +217,10 @@ def _label_scale_table(entry: dict[str, Any]) -> list[str]:
             f"{entry['log_log_exponent_cpu']:.2f}; CPU per frame varies by "
             f"{100 * entry['cpu_per_frame_spread']:.0f} % over the sizes."
         )]
+    lines += ["", (
+        "Wall time is the shared machine's (the load is beside each row); frames rendered "
+        "by the run itself, with their time, are in `benchmark.json` (`renders`)."
+    )]
     return lines + [""]
 
 
@@ -364,6 +366,14 @@ def markdown(results: dict[str, Any], notes: list[str] | None = None) -> str:
             unit = e["unit"]
             if e.get("headline_points"):
                 unit += f" ({e['headline_points']:,} points)"
+            if stage == "label_scale" and e.get("label_scale"):  # CPU per frame, largest
+                row = max(e["label_scale"], key=lambda r: r["frames"])
+                lines.append(
+                    f"| {stage} | CPU s per frame ({row['frames']:,} frames) | "
+                    f"{e['ours']['variant']} | - | {_fmt(row['cpu_s'] / row['frames'])} | - | "
+                    "- |"
+                )
+                continue
             if e.get("peer") is None:
                 per_n = (e.get("ours") or {}).get("per_num_images") or {}
                 largest = max(per_n, key=int, default=None)
