@@ -21,8 +21,9 @@ traced to the run that made it (STYLE.md, "User documentation").
     python -m experiments.docs_tables --overview IMAGE --captured TIME   # the README's picture
 
 ``--collect`` copies a finished run's ``metrics.json`` into ``experiments/results/sec4a/NAME/``
-and stamps it with what the run's own provenance lacks (the date it finished, from the file's
-modification time, and this machine's CPU): run it on the machine that made the run.
+and, for a run whose provenance predates its ``date`` and ``machine`` fields, stamps it with
+the date it finished (the file's modification time) and this machine's CPU: run it on the
+machine that made the run.
 ``tests/test_docs.py`` fails when a block in the docs differs from what this module renders
 (the drift test).
 """
@@ -38,6 +39,8 @@ import re
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+
+from experiments import provenance
 
 __all__ = [
     "BLOCKS",
@@ -505,26 +508,11 @@ def overview_figure(image: str | os.PathLike, captured: dt.datetime, out: str | 
 
 # ----------------------------------------------------------------------------- collecting
 
-def machine() -> str:
-    """This machine's CPU model and core count (Linux ``/proc/cpuinfo``, else platform)."""
-    import platform
-
-    model = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{model or platform.processor() or platform.machine()}, {os.cpu_count()} cores"
-
-
 def collect(workdir: Path, name: str, root: Path = ROOT) -> Path:
-    """Copy ``workdir/metrics.json`` to ``experiments/results/sec4a/NAME/metrics.json``,
-    adding ``run``: when the run finished (the file's modification time, UTC) and this
-    machine. Figures are not copied (the docs show the default seed's from
-    ``experiments/results/``).
+    """Copy ``workdir/metrics.json`` to ``experiments/results/sec4a/NAME/metrics.json``;
+    a run whose provenance has no ``date`` gets ``run``: when it finished (the file's
+    modification time, UTC) and this machine. Figures are not copied (the docs show the
+    default seed's from ``experiments/results/``).
 
     Raises:
       ValueError: ``NAME`` is not ``<dataset>_seed<N>`` or the workdir holds no finished run.
@@ -537,9 +525,10 @@ def collect(workdir: Path, name: str, root: Path = ROOT) -> Path:
         raise ValueError(f"{src}: expected the metrics.json of a finished Sec. IV-A run")
     if metrics["dataset"]["name"] != name.rsplit("_seed", 1)[0]:
         raise ValueError(f"{src}: a run of {metrics['dataset']['name']}, not of {name}")
-    finished = dt.datetime.fromtimestamp(src.stat().st_mtime, dt.UTC)
-    metrics["run"] = {"finished_utc": finished.strftime("%Y-%m-%d %H:%M UTC"),
-                      "machine": machine()}
+    if not (metrics.get("provenance") or {}).get("date"):
+        finished = dt.datetime.fromtimestamp(src.stat().st_mtime, dt.UTC)
+        metrics["run"] = {"finished_utc": finished.strftime("%Y-%m-%d %H:%M UTC"),
+                          "machine": provenance.machine()}
     out = root / SEC4A / name / "metrics.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(".metrics.json.tmp")

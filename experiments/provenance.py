@@ -1,4 +1,5 @@
-"""What produced a run: the command line, the code's version and the packages it ran on.
+"""What produced a run: the command line, the code's version, the packages it ran on, when it
+finished and on which machine.
 
 Both drivers' ``report.md`` (Sec. IV-A and map summarization) record it, so a figure in a
 report can be traced to the code and the library versions that drew it. ``gather()`` is
@@ -7,6 +8,8 @@ called once per run and stored in ``metrics.json``; ``markdown()`` renders it.
 
 from __future__ import annotations
 
+import datetime as dt
+import os
 import platform
 import shlex
 import subprocess
@@ -14,7 +17,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["gather", "markdown", "PACKAGES"]
+__all__ = ["gather", "machine", "markdown", "PACKAGES"]
 
 # The packages whose versions decide the numbers: (label, distributions to try in order).
 PACKAGES = (
@@ -48,6 +51,20 @@ def _git(*args: str) -> str | None:
     return proc.stdout.strip() if proc.returncode == 0 else None
 
 
+def machine() -> str:
+    """This machine's CPU model and core count (Linux ``/proc/cpuinfo``, else ``platform``):
+    the same command gives slightly different figures on another CPU (SIMD paths)."""
+    model = None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{model or platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+
+
 def gather(argv: list[str] | None = None) -> dict:
     """The run's provenance.
 
@@ -56,7 +73,9 @@ def gather(argv: list[str] | None = None) -> dict:
         keeps ``-m experiments.webcam_clipart``), with the interpreter written ``python``.
 
     Returns:
-      ``{"command", "code", "python", "packages"}``: ``code`` is ``git <commit>`` (with
+      ``{"command", "code", "date", "machine", "python", "packages"}``: ``date`` is now in
+      UTC (a run gathers it when it finishes), ``machine`` the CPU; ``code`` is
+      ``git <commit>`` (with
       ``+ uncommitted changes`` when the checkout has any) or, outside a checkout,
       ``rp_jax <version>``; ``packages`` maps each of ``PACKAGES`` to its version or None.
     """
@@ -71,6 +90,8 @@ def gather(argv: list[str] | None = None) -> dict:
     return {
         "command": command,
         "code": code,
+        "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine(),
         "python": platform.python_version(),
         "packages": {label: _version(names) for label, names in PACKAGES},
     }
@@ -86,6 +107,7 @@ def markdown(prov: dict | None) -> list[str]:
         "",
         f"- Command: `{prov['command']}`",
         f"- Code: {prov['code']}",
+        *([f"- Finished {prov['date']} on {prov['machine']}."] if prov.get("date") else []),
         f"- Python {prov['python']}; {packages}.",
         "",
     ]
