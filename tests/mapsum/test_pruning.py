@@ -1,7 +1,5 @@
 """Tests of rp_jax.mapsum.sampling (Sec. V-A-2: prune the least repeatable points per part)."""
 
-import time
-
 import numpy as np
 import pytest
 
@@ -63,14 +61,14 @@ def test_repeatability_keep_reads_the_query_timestamp():
         )
 
 
-def test_million_points_under_a_few_seconds():
-    # Budget is generous because the test machine is shared; typical is well under 1 s.
+def test_a_million_points_keep_the_budget_of_every_part():
+    # The speed is the benchmark's figure (experiments/benchmark, "summarize 10^6 points"),
+    # not a timed test: on shared cores a wall-clock bound failed with the code unchanged.
     rng = np.random.default_rng(0)
     n = 1_000_000
     score = rng.random(n).astype(np.float32)
     parts = rng.integers(0, 500, n)
-    start = time.perf_counter()
     keep = prune_by_score(score, parts, 0.6)
-    elapsed = time.perf_counter() - start
     assert keep.sum() == keep_count(np.bincount(parts), 0.6).sum()
-    assert elapsed < 5.0
+    np.testing.assert_array_equal(np.bincount(parts[keep], minlength=500),
+                                  keep_count(np.bincount(parts, minlength=500), 0.6))
