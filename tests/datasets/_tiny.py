@@ -1,4 +1,10 @@
-"""Shared helpers of the dataset tests: tiny synthetic builds and record checks."""
+"""Shared helpers of the dataset tests: tiny synthetic builds and record checks.
+
+``shared_data_dir`` is one TFDS data dir for the whole test session, seen by every xdist
+worker: each tiny world is rendered and each tiny dataset built there once, by the first
+test that asks (``build_tiny`` holds a lock per dataset while it builds, so a second worker
+waits and then finds the build done). Tests read it and copy what they change.
+"""
 
 from __future__ import annotations
 
@@ -8,19 +14,24 @@ import numpy as np
 
 from rp_jax.datasets import features as features_lib
 from rp_jax.datasets import loading
+from tests import _session_cache
 
 TINY = "synthetic_tiny"
 
 
 def shared_data_dir(tmp_path_factory) -> Path:
-    # One data dir for the session: the synthetic world lands in <base>/synthetic/ and is
-    # rendered once (test_datasets_cli.py uses the same place).
-    return tmp_path_factory.getbasetemp() / "datasets_shared" / "tfds"
+    # The synthetic worlds land in <base>/synthetic/ beside it (test_datasets_cli.py,
+    # test_outcomes.py and test_builders.py use the same place).
+    return _session_cache.shared_base(tmp_path_factory) / "datasets_shared" / "tfds"
 
 
 def build_tiny(name: str, data_dir: Path, **kwargs):
-    b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
-    b.download_and_prepare()
+    """The ``synthetic_tiny`` build of ``name`` in ``data_dir`` (built unless it is there)."""
+    data_dir = Path(data_dir)
+    # Two workers building one dataset in one data dir at once would write the same files.
+    with _session_cache.locked(data_dir.parent / f".build-{name}.lock"):
+        b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
+        b.download_and_prepare()
     return b
 
 

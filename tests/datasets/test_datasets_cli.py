@@ -12,13 +12,16 @@ import pytest
 pytest.importorskip("tensorflow_datasets")
 
 from rp_jax.datasets.__main__ import main
-from tests.datasets._tiny import TINY, shared_data_dir
+from tests.datasets._tiny import TINY, build_tiny, shared_data_dir
 
 
 @pytest.fixture(scope="module")
 def data_dir(tmp_path_factory):
-    # Shared with test_builders.py: the tiny world and build are made once per session.
-    return shared_data_dir(tmp_path_factory)
+    # Shared with test_builders.py: the tiny world and build are made once per session, by
+    # whichever test asks first (build_tiny's lock keeps another worker's build out).
+    data_dir = shared_data_dir(tmp_path_factory)
+    build_tiny("webcam_clipart", data_dir)
+    return data_dir
 
 
 def _run(capsys, *argv) -> tuple[int, str, str]:
