@@ -184,6 +184,9 @@ def sec4a_seed_table(runs: Sequence[tuple[int, Mapping]], *, default_seed: int =
                   _pm([m["curve_corr"] for m in ms], 3), ""]
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
+    if len(runs) < 3:
+        lines += [f"_Only {len(runs)} world seed{'s' if len(runs) > 1 else ''} committed: the "
+                  "spread over worlds is not measured yet, so read this figure as one draw._", ""]
     lines.append("Test MAE (lower is better); each seed is its own rendered world, trained and "
                  "tested once. Runs:")
     lines.append("")
@@ -210,8 +213,10 @@ def sec4a_category_table(runs: Sequence[tuple[int, Mapping]]) -> str:
         count = runs[0][1]["per_category"].get(g, {}).get("count")
         count = f"{count:,}" if isinstance(count, int) else ""
         lines.append(f"| {g} | {count} | {_pm(rp, 4)} | {_pm(base, 4) if base else '-'} |")
+    if len(runs) == 1:
+        return "\n".join(lines) + f"\n\nTest MAE, world seed {runs[0][0]}.\n"
     seeds = ", ".join(str(s) for s, _ in runs)
-    return "\n".join(lines) + f"\n\nTest MAE, mean ± sd over seeds {seeds}.\n"
+    return "\n".join(lines) + f"\n\nTest MAE, mean ± sd over world seeds {seeds}.\n"
 
 
 def sec4a_headline(runs_by_dataset: Mapping[str, Sequence[tuple[int, Mapping]]]) -> str:
@@ -231,7 +236,7 @@ def sec4a_headline(runs_by_dataset: Mapping[str, Sequence[tuple[int, Mapping]]])
         default_cell = (f"{default['test_mae']:.4f} vs {best_baseline(default)[1]:.4f} "
                         f"({relative_to_best(default):+.1f} %)" if default else "not run")
         spread = (f"{_pm(rel, 1, suffix=' %')}, from {min(rel):+.1f} to {max(rel):+.1f} %"
-                  if len(rel) > 1 else f"{rel[0]:+.1f} % (one seed)")
+                  if len(rel) > 1 else f"{rel[0]:+.1f} % (one seed: no spread measured yet)")
         lines.append("| " + " | ".join([
             label, ", ".join(str(s) for s, _ in runs), _pm([m["test_mae"] for m in ms], 4),
             _pm([best_baseline(m)[1] for m in ms], 4), spread, default_cell]) + " |")
