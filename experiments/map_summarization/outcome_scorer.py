@@ -594,34 +594,44 @@ def register_rows() -> None:
 # ----------------------------------------------------------------------------- validation
 
 
+def pair_scores(scorers: OutcomeScorers, kind: str, labels: OutcomeLabels,
+                point_table: np.ndarray, query_rows: np.ndarray) -> np.ndarray:
+    """[n] score of every pair of ``labels`` (NaN for queries not localized within
+    (5 m, 10 deg)), each point scored at its query's conditions."""
+    from rp_jax.mapsum.outcome_scorer import score_points
+
+    pstd, qstd = scorers.standardizers[kind]
+    ptab = pstd(point_table[:, scorers.columns])
+    score = np.full(labels.num_pairs, np.nan)
+    for q in np.flatnonzero(labels.pose_correct):
+        sel = labels.query == q
+        score[sel] = score_points(scorers.nets[kind], scorers.params[kind],
+                                  ptab[labels.point[sel]], qstd(query_rows[q:q + 1])[0])
+    return score
+
+
 def validation_auc(scorers: OutcomeScorers, labels: OutcomeLabels, point_table: np.ndarray,
                    query_rows: np.ndarray) -> dict[str, float | None]:
     """Each scorer's inlier AUC on one group's labels: the pairs of the queries localized
     within (5 m, 10 deg), each point scored at its query's conditions."""
-    from rp_jax.mapsum.outcome_scorer import score_points
-    from rp_jax.mapsum.statistics import inlier_auc
-
-    out = {}
-    use = labels.pose_correct[labels.query]
-    for kind in KINDS:
-        pstd, qstd = scorers.standardizers[kind]
-        ptab = pstd(point_table[:, scorers.columns])
-        score = np.zeros(labels.num_pairs)
-        for q in np.flatnonzero(labels.pose_correct):
-            sel = labels.query == q
-            score[sel] = score_points(scorers.nets[kind], scorers.params[kind],
-                                      ptab[labels.point[sel]], qstd(query_rows[q:q + 1])[0])
-        out[kind] = inlier_auc(score[use], labels.inlier[use])
-    return out
-
-
-def _feature_aucs(labels: OutcomeLabels, point_table: np.ndarray) -> dict[str, float | None]:
     from rp_jax.mapsum.statistics import inlier_auc
 
     use = labels.pose_correct[labels.query]
-    names = _point_names(point_table.shape[1])
+    return {kind: inlier_auc(pair_scores(scorers, kind, labels, point_table,
+                                         query_rows)[use], labels.inlier[use])
+            for kind in KINDS}
+
+
+def _feature_aucs(data: _Stack) -> dict[str, float | None]:
+    """Each point feature alone as the score (pairs of correctly localized queries)."""
+    from rp_jax.mapsum.statistics import inlier_auc
+
+    labels = data.labels
+    use = labels.pose_correct[labels.query]
+    names = _point_names(data.points.shape[1])
     y = labels.inlier[use]
-    return {n: (None if (a := inlier_auc(point_table[labels.point[use], j], y)) is None
+    rows = data.pair_point[use]
+    return {n: (None if (a := inlier_auc(data.points[rows, j], y)) is None
                 else round(a, 4)) for j, n in enumerate(names)}
 
 
@@ -629,6 +639,7 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
              ablation: bool = False, progress: bool = True) -> dict:
     """The scorers trained without ``slice_id`` (by ``config``), scored on its labels."""
     from experiments.map_summarization.train import train_predictor
+    from rp_jax.mapsum.statistics import inlier_auc
 
     if int(slice_id) == TEST_SLICE:
         raise ValueError(f"slice {TEST_SLICE} is the test slice: nothing is validated on it")
@@ -648,14 +659,22 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
         scorers = train_outcome_scorers(config, workdir, predictor, progress=progress,
                                         drop_groups=drop)
         name = "all" if not drop else f"without_{drop[0]}"
-        per_seed = {str(s): validation_auc(scorers, lab, pt, qt)
-                    for s, (lab, pt, qt) in zip(seeds, held, strict=True)}
-        pooled = _pooled_auc(scorers, held)
+        per_seed: dict = {str(s): {} for s in seeds}
+        pooled: dict = {}
+        for kind in KINDS:
+            scores, ys = [], []
+            for s, (lab, pt, qt) in zip(seeds, held, strict=True):
+                use = lab.pose_correct[lab.query]
+                sc = pair_scores(scorers, kind, lab, pt, qt)[use]
+                per_seed[str(s)][kind] = inlier_auc(sc, lab.inlier[use])
+                scores.append(sc)
+                ys.append(lab.inlier[use])
+            pooled[kind] = inlier_auc(np.concatenate(scores), np.concatenate(ys))
         result["variants"][name] = {"auc": pooled, "auc_per_seed": per_seed,
                                     "training": {k: v for k, v in scorers.summary.items()}}
         timings[f"{name}_s"] = round(time.perf_counter() - tic, 1)
     stack = _stack(held)
-    result["feature_auc"] = _feature_aucs(stack.labels, stack.points)
+    result["feature_auc"] = _feature_aucs(stack)
     use = stack.labels.pose_correct[stack.labels.query]
     result["validation"] = {
         "queries": int(stack.labels.num_queries),
@@ -666,27 +685,6 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
     result["timings"] = timings
     files.write_json(workdir / "outcome_scorer_validation.json", result)
     return result
-
-
-def _pooled_auc(scorers: OutcomeScorers, held) -> dict[str, float | None]:
-    """AUC over every validation seed's pairs together."""
-    from rp_jax.mapsum.outcome_scorer import score_points
-    from rp_jax.mapsum.statistics import inlier_auc
-
-    out = {}
-    for kind in KINDS:
-        pstd, qstd = scorers.standardizers[kind]
-        scores, ys = [], []
-        for lab, pt, qt in held:
-            ptab = pstd(pt[:, scorers.columns])
-            for q in np.flatnonzero(lab.pose_correct):
-                sel = lab.query == q
-                scores.append(score_points(scorers.nets[kind], scorers.params[kind],
-                                           ptab[lab.point[sel]], qstd(qt[q:q + 1])[0]))
-                ys.append(lab.inlier[sel])
-        out[kind] = (None if not scores else
-                     round(inlier_auc(np.concatenate(scores), np.concatenate(ys)) or 0.0, 4))
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:

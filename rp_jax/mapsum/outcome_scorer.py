@@ -382,6 +382,9 @@ def score_points(net, params, point_table: np.ndarray, query_row: np.ndarray,
                  chunk: int = 65536) -> np.ndarray:
     """[P] probability that each point is a correct-pose inlier at one query's conditions.
 
+    Rows are padded to a multiple of ``_ROW_BUCKET`` (at most ``chunk`` a call), so the
+    pools of many queries, each its own size, share a few compiled shapes.
+
     Args:
       net, params: an ``OutcomeScorer`` and its parameters.
       point_table: [P, F] standardized point features.
@@ -389,13 +392,18 @@ def score_points(net, params, point_table: np.ndarray, query_row: np.ndarray,
     """
     apply = _compiled_apply(net)
     p = len(point_table)
-    q = jnp.broadcast_to(jnp.asarray(query_row, jnp.float32), (min(chunk, max(p, 1)),
-                                                                len(query_row)))
     out = []
     for s in range(0, p, chunk):
-        part = jnp.asarray(point_table[s:s + chunk], jnp.float32)
-        out.append(np.asarray(jax.nn.sigmoid(apply(params, part, q[:len(part)]))))
+        part = np.asarray(point_table[s:s + chunk], np.float32)
+        n = len(part)
+        padded = np.zeros((-(-n // _ROW_BUCKET) * _ROW_BUCKET, part.shape[1]), np.float32)
+        padded[:n] = part
+        q = np.broadcast_to(np.asarray(query_row, np.float32), (len(padded), len(query_row)))
+        out.append(np.asarray(jax.nn.sigmoid(apply(params, padded, q)))[:n])
     return np.concatenate(out).astype(np.float64) if out else np.zeros(0)
+
+
+_ROW_BUCKET = 1024  # rows of one compiled scoring shape
 
 
 @functools.cache
