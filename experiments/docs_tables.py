@@ -372,7 +372,9 @@ def map_summarization_headline(metrics: Mapping | None) -> str:
                 f"{metrics['accuracy'][method][r][threshold]:.1f}" for r in ratios) + " |")
     except (KeyError, IndexError, TypeError, ValueError) as e:
         raise ValueError(f"{MAPSUM}: not the layout this summary reads ({e!r})") from e
-    return "\n".join(lines) + f"\n\nWithin {threshold}. Run: {run_caption(metrics)}.\n"
+    m = re.fullmatch(r"([\d.]+)m_([\d.]+)deg", threshold)
+    within = f"({m.group(1)} m, {m.group(2)}°)" if m else threshold
+    return "\n".join(lines) + f"\n\nWithin {within}. Run: {run_caption(metrics)}.\n"
 
 
 def map_summarization_tables(metrics: Mapping | None) -> str:

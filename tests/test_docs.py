@@ -242,3 +242,18 @@ def test_quick_start_runs_as_written(tmp_path):
             scope: dict = {}
             exec(compile(body, "README.md (Quick start)", "exec"), scope)  # noqa: S102
             assert scope["scores"].shape == (4, len(scope["rp"].schedule.labels))
+
+
+def test_map_summarization_headline_reads_the_coarsest_threshold():
+    acc = {m: {r: {"0.5m_5deg": a - 5, "5m_10deg": a} for r, a in zip(("0.5", "0.9"), accs)}
+           for m, accs in (("rp", (90.0, 50.0)), ("kcover", (89.0, 47.5)))}
+    metrics = {"ratios": ["0.5", "0.9"], "methods": ["rp", "kcover"], "accuracy": acc,
+               "provenance": {"command": "python -m experiments.map_summarization",
+                              "code": "git " + "b" * 40, "date": "2030-01-01 00:00 UTC",
+                              "machine": "a CPU, 2 cores"}}
+    table = docs_tables.map_summarization_headline(metrics)
+    assert "| method | 50 % pruned | 90 % pruned |" in table
+    assert "| rp | 90.0 | 50.0 |" in table and "| kcover | 89.0 | 47.5 |" in table
+    assert "Within (5 m, 10°)." in table and "a CPU, 2 cores; git bbbbbbbbbbbb" in table
+    with pytest.raises(ValueError, match="not the layout"):
+        docs_tables.map_summarization_headline({"ratios": []})
