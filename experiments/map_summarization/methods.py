@@ -353,8 +353,11 @@ def _matched_agnostic_oracle(ctx: WorldContext, at: At) -> np.ndarray:
 
     def compute() -> np.ndarray:
         n_date = sum(p and d == at.date for d, p in zip(ctx.dates, ctx.posed))
+        n_other = sum(p and d != at.date for d, p in zip(ctx.dates, ctx.posed))
+        # As many as the date oracle sees; fewer only where the other dates hold fewer
+        # posed queries (a real download poses about half of them).
         members = matched_agnostic_members(
-            ctx.dates, ctx.posed, at.date, max(n_date - 1, 0),
+            ctx.dates, ctx.posed, at.date, min(max(n_date - 1, 0), n_other),
             seed=ctx.seed * 1_000_003 + at.date.toordinal())
         return with_track_tiebreak(hit_counts(ctx.hits, members, ctx.map_points.num_points),
                                    ctx.map_points)

@@ -448,6 +448,12 @@ def test_oracle_rows_never_score_a_query_with_its_own_redetection():
     np.testing.assert_array_equal(np.floor(s), [0, 0, 0, 1])  # one query of date b
     with pytest.raises(ValueError, match="one query at a time"):
         date_row.score(ctx, methods.At(ctx.queries[0]["bucket"], a))
+    # Three posed queries of date a, one of date b (as on a download where half the
+    # queries have no pose): the agnostic twin sees the one it can, not an error.
+    ctx = _tiny_context([a, a, a, b, b], [True, True, True, True, False],
+                        [[0], [1], [2], [3], []])
+    s = agnostic_row.score(ctx, methods.At(ctx.queries[0]["bucket"], a))
+    np.testing.assert_array_equal(np.floor(s), [0, 0, 0, 1])
 
 
 def test_the_registry_names_every_row_of_a_run_once():
