@@ -300,6 +300,12 @@ def main(argv, name: str, get_config, doc: str) -> int:
               "measured on held-out training viewpoints only in this release: add "
               "--cross-validate", file=sys.stderr)
         return 2
+    try:  # a bad flag or workdir is answered before the workdir is touched, not even by the
+        # lock file (both checks only read)
+        sec4a_config.validate(config, None if conditional else workdir)
+    except (train.ConfigError, train.WorkdirMismatchError) as e:
+        print(f"python -m experiments.{name}: error: {e}", file=sys.stderr)
+        return 2
     # One run at a time in a workdir (rp_jax.workdir_lock): a second one stops here, at once
     # (a workdir that is a file is left to sec4a_config.validate's message).
     holding = (contextlib.nullcontext() if Path(workdir).is_file()
