@@ -57,6 +57,10 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path("experiments") / "results"
 SEC4A = RESULTS / "sec4a"
 MAPSUM = RESULTS / "map_summarization" / "metrics.json"
+# The same command on world seeds the recipe was not chosen on (--seeds 3,4), and the
+# run on the held-out training slice 6 that chose the recipe of the recommended row.
+MAPSUM_UNSEEN = RESULTS / "map_summarization_unseen_seeds" / "metrics.json"
+MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
 
 # The baselines of Sec. IV-A in the order the paper's discussion takes them; names as
@@ -377,17 +381,41 @@ def map_summarization_headline(metrics: Mapping | None) -> str:
     return "\n".join(lines) + f"\n\nWithin {within}. Run: {run_caption(metrics)}.\n"
 
 
-def map_summarization_tables(metrics: Mapping | None) -> str:
+def map_summarization_tables(metrics: Mapping | None, path: Path = MAPSUM) -> str:
     """Fig. 11's tables, rendered by the experiment's own ``report.tables_markdown``."""
     if metrics is None:
-        return ("_No map-summarization result is committed yet "
-                "(`experiments/results/map_summarization/metrics.json`)._\n")
+        return f"_No map-summarization result is committed yet (`{path.as_posix()}`)._\n"
     from experiments.map_summarization import report
 
     if not hasattr(report, "tables_markdown"):
         return "_`experiments.map_summarization.report` has no `tables_markdown`._\n"
     body = report.tables_markdown(metrics).rstrip("\n") + "\n"
     return body + f"\nRun: {run_caption(metrics)}.\n"
+
+
+def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTION) -> str:
+    """The rule of ``config.map.rp_method`` on the selection run (held-out training slice):
+    each candidate row's mean accuracy over the run's ratios at (0.5 m, 5 deg) and
+    (5 m, 10 deg), best first; the first is the recipe chosen."""
+    if metrics is None:
+        return f"_No recipe-selection run is committed yet (`{path.as_posix()}`)._\n"
+    from experiments.map_summarization import methods
+
+    try:
+        rows = [k for k in metrics["methods"]
+                if k != "rp" and k in methods.RP_RECIPES or k.startswith("outcome")]
+        ratios, acc = metrics["ratios"], metrics["accuracy"]
+        score = {k: sum(acc[k][r][th] for r in ratios for th in ("0.5m_5deg", "5m_10deg"))
+                 / (2 * len(ratios)) for k in rows}
+    except (KeyError, TypeError) as e:
+        raise ValueError(f"{path}: not the layout this table reads ({e!r})") from e
+    ranked = sorted(rows, key=lambda k: -score[k])
+    labels = metrics.get("labels", {})
+    lines = ["| recipe | what it is | mean accuracy (%) |", "|---|---|---|"]
+    lines += [f"| `{k}` | {labels.get(k, k)} | {score[k]:.2f} |" for k in ranked]
+    return ("\n".join(lines) + f"\n\nMean over {', '.join(ratios)} pruned at (0.5 m, 5°) and "
+            f"(5 m, 10°), {metrics['queries']} queries of slice {metrics.get('slice')}, seeds "
+            f"{metrics['seeds']}. Run: {run_caption(metrics)}.\n")
 
 
 # ----------------------------------------------------------------------------- the blocks
@@ -413,6 +441,10 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "benchmark": lambda root: benchmark_table(read_json(root / BENCHMARK)),
     "benchmark_scaling": lambda root: benchmark_scaling(read_json(root / BENCHMARK)),
     "map_summarization": lambda root: map_summarization_tables(read_json(root / MAPSUM)),
+    "map_summarization_unseen_seeds": lambda root: map_summarization_tables(
+        read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),
+    "map_summarization_selection": lambda root: recipe_selection_table(
+        read_json(root / MAPSUM_SELECTION)),
 }
 
 

@@ -257,3 +257,28 @@ def test_map_summarization_headline_reads_the_coarsest_threshold():
     assert "Within (5 m, 10°)." in table and "a CPU, 2 cores; git bbbbbbbbbbbb" in table
     with pytest.raises(ValueError, match="not the layout"):
         docs_tables.map_summarization_headline({"ratios": []})
+
+
+def test_recipe_selection_ranks_the_candidates_by_their_mean_over_ratios_and_thresholds():
+    def acc(a05, a5):
+        return {r: {"0.5m_5deg": a05, "5m_10deg": a5} for r in ("0.5", "0.9")}
+
+    metrics = {"ratios": ["0.5", "0.9"], "queries": 40, "slice": 6, "seeds": [0, 1],
+               "methods": ["rp_paper", "rp", "outcome", "rp_cmu_kcover", "kcover"],
+               "accuracy": {"rp_paper": acc(50.0, 60.0), "rp": acc(99.0, 99.0),
+                            "outcome": acc(70.0, 80.0), "rp_cmu_kcover": acc(60.0, 80.0),
+                            "kcover": acc(98.0, 98.0)},
+               "labels": {"outcome": "outcome scorer"},
+               "provenance": {"command": "python -m experiments.map_summarization",
+                              "code": "git " + "c" * 40, "date": "2030-01-01 00:00 UTC",
+                              "machine": "a CPU, 2 cores"}}
+    table = docs_tables.recipe_selection_table(metrics).splitlines()
+    rows = [line for line in table if line.startswith("| `")]
+    # rp (an alias of the current recipe) and the baselines are not candidates
+    assert rows == ["| `outcome` | outcome scorer | 75.00 |",
+                    "| `rp_cmu_kcover` | rp_cmu_kcover | 70.00 |",
+                    "| `rp_paper` | rp_paper | 55.00 |"]
+    assert "slice 6, seeds [0, 1]" in "\n".join(table)
+    assert "No recipe-selection run" in docs_tables.recipe_selection_table(None)
+    with pytest.raises(ValueError, match="not the layout"):
+        docs_tables.recipe_selection_table({"methods": ["outcome"], "accuracy": {}})

@@ -67,6 +67,13 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.conditional_epochs = {"tiny": 2, "small": 8, "full": 8}[size]
     m.conditional_hidden = 128  # width of its point code and pair layers
     m.conditional_harmonics = 2  # sin/cos multiples of the time-of-day angle
+    # The outcome scorer (``outcome*`` rows, ``outcome_scorer.py``; opt-in through
+    # ``candidates``): the world seeds whose training slices (6, 7, 9, less the run's own)
+    # give localization-outcome labels, and its MLP. Fixed before any validation.
+    m.outcome_seeds = (0,)
+    m.outcome_hidden = 64
+    m.outcome_depth = 2
+    m.outcome_epochs = 6
     m.oracle_radius_px = 4.0  # oracle_date: a re-detection within this distance
     m.cell_size_m = 10.0  # ground-plane grid partition (Sec. V-A-2)
     m.up_axis = 2  # world axis pointing up (synthetic: z), for a diagnostic; -1 unknown
@@ -140,6 +147,9 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
                f"a comma list of sun, weather, semantics, appearance ({e})")
     expect(len(m.seeds) > 0 and all(isinstance(s, int) and s >= 0 for s in m.seeds), "seeds",
            "one or more non-negative integers, e.g. (0, 1, 2)")
+    expect(len(m.outcome_seeds) > 0
+           and all(isinstance(s, int) and s >= 0 for s in m.outcome_seeds), "outcome_seeds",
+           "one or more non-negative integers, e.g. (0,)")
     expect(m.synthetic_size in ("tiny", "small", "full"), "synthetic_size",
            "one of ['tiny', 'small', 'full']")
     expect(isinstance(m.ratios, (tuple, list)) and len(m.ratios) > 0
@@ -150,7 +160,8 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
     expect(m.up_axis in (-1, 0, 1, 2), "up_axis", "0, 1 or 2 (a world axis), or -1 (unknown)")
     for field in ("time_bucket_minutes", "max_keypoints", "vlad_words", "num_retrieved",
                   "ransac_iterations", "cmu_rp_epochs", "conditional_epochs",
-                  "conditional_hidden", "conditional_harmonics"):
+                  "conditional_hidden", "conditional_harmonics", "outcome_hidden",
+                  "outcome_depth", "outcome_epochs"):
         number(field, 1, integer=True)
     number("min_inliers", 4, integer=True)  # a PnP pose needs four points
     for field in ("workers", "kcover_K", "random_seed"):
