@@ -494,8 +494,16 @@ _FIG11_STYLES = {
     "rp_kcover": ("tab:purple", "v", "-"),
     "rp_cmu": ("tab:cyan", "P", "-"),
     "rp_cmu_kcover": ("tab:olive", "X", "-"),
+    "rp_conditional": ("tab:pink", "h", "-"),
+    "rp_conditional_kcover": ("tab:pink", "H", ":"),
+    "outcome": ("darkviolet", "p", ":"),
+    "outcome_top": ("darkviolet", "p", "-"),
+    "outcome_agnostic": ("teal", "d", ":"),
+    "outcome_agnostic_top": ("teal", "d", "-"),
+    "maplab": ("darkgreen", "<", ":"),
     "oracle_agnostic": ("black", "x", "--"),
     "oracle_date": ("tab:brown", "*", "--"),
+    "oracle_inliers": ("dimgray", "+", "--"),
 }
 
 
@@ -523,7 +531,9 @@ def plot_accuracy_vs_pruning(
     Returns:
       The PNG written.
     """
-    fig = _new_figure(5.2 * len(thresholds), 4.2)
+    # The legend takes a column of its own to the right of the panels, so that it never
+    # hides a line (a run has up to 16 rows).
+    fig = _new_figure(5.2 * len(thresholds) + 3.4, 4.2)
     axes = fig.subplots(1, len(thresholds), squeeze=False)[0]
     labels = labels or {}
     methods = list(accuracy)
@@ -532,8 +542,10 @@ def plot_accuracy_vs_pruning(
             per_ratio = accuracy[method]
             ratios = sorted(per_ratio, key=float)
             color, marker, ls = _FIG11_STYLES.get(method, (None, "x", "-"))
-            # Small horizontal offsets keep overlapping error bars apart.
-            x = np.array([100 * float(r) for r in ratios]) + 0.6 * (k - (len(methods) - 1) / 2)
+            # Small horizontal offsets keep overlapping error bars apart (all of them within
+            # 5 points of the ratio, however many rows).
+            step = min(0.6, 5.0 / max(len(methods), 1))
+            x = np.array([100 * float(r) for r in ratios]) + step * (k - (len(methods) - 1) / 2)
             y = np.array([per_ratio[r][th] for r in ratios], np.float64)
             yerr = None
             if intervals is not None and method in intervals:
@@ -566,7 +578,9 @@ def plot_accuracy_vs_pruning(
     )
     for ax in axes:
         ax.set_ylim(max(-2.0, 10.0 * np.floor(lowest / 10.0) - 5.0), 102)
-    axes[0].legend(loc="lower left", fontsize=7)
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="center right", fontsize=7, frameon=False)
+    fig.subplots_adjust(right=1 - 3.2 / (5.2 * len(thresholds) + 3.4), wspace=0.25)
     if title:
         fig.suptitle(title)
     return save_figure(fig, out)

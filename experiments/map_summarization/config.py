@@ -46,15 +46,19 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.query_dates = ()
     m.time_bucket_minutes = 10  # queries within one such bucket share a summary
     m.ratios = (0.5, 0.6, 0.7, 0.8, 0.9)  # pruned fraction of the map
-    # The recipe of the recommended ``rp`` row (methods.RP_RECIPES: which predictor,
-    # which rule) and extra recipes reported as rows of their own. ``rp`` is chosen on the
-    # held-out training slice 6, never on the test slice: the recipe with the highest mean
-    # accuracy over the five ratios at (0.5 m, 5 deg) and (5 m, 10 deg), pooled over seeds
-    # 0, 1, 2 (ties: the simpler recipe). The command that chooses (README, "Choosing rp"):
+    # The recipe of the recommended ``rp`` row (methods.RP_RECIPES and the outcome rows:
+    # which score, which rule) and extra recipes reported as rows of their own. ``rp`` is
+    # chosen on the held-out training slice 6, never on the test slice: the recipe with the
+    # highest mean accuracy over the five ratios at (0.5 m, 5 deg) and (5 m, 10 deg), pooled
+    # over seeds 0, 1, 2 (ties: the simpler recipe). The command that chose it (its table:
+    # docs/results/map_summarization.md, "How the recommended recipe was chosen"):
     #   python -m experiments.map_summarization --workdir runs/mapsum_select_slice6 \
-    #     --config.map.slice=6 "--config.map.candidates=('rp_kcover','rp_cmu','rp_cmu_kcover')"
-    m.rp_method = "rp_cmu_kcover"
-    m.candidates = ()
+    #     --config.map.slice=6 "--config.map.candidates=('rp_kcover','rp_cmu',
+    #     'rp_cmu_kcover','outcome','outcome_top','outcome_agnostic','outcome_agnostic_top')"
+    # The candidates kept as rows: the time-aware twin of the chosen score (does knowing the
+    # query's time help?) and the recipe recommended before the outcome scorer.
+    m.rp_method = "outcome_agnostic_top"
+    m.candidates = ("outcome_top", "rp_cmu_kcover")
     m.cmu_rp_epochs = {"tiny": 2, "small": 8, "full": 8}[size]  # the CMU-trained RP
     # ``rp_conditional`` / ``rp_conditional_kcover`` (issue 17; opt-in through
     # ``candidates``): the conditional predictor (``rp_jax.conditional``) trained on the

@@ -108,10 +108,15 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
                     "p": mcnemar_exact(only_date, only_agnostic),
                     "interval": clustered(a[:, j], b[:, j]),
                 }
-    # Each candidate recipe paired with ``rp`` as well (issue 17: rp_conditional against rp).
+    # Each candidate recipe (a row of kind "method" in the registry, the outcome scorer's
+    # included) paired with ``rp`` as well: e.g. the time-aware twin against the
+    # recommended time-agnostic scorer, rp_conditional against rp.
+    from experiments.map_summarization.methods import ROWS
+
     paired_rp: dict = {}
     if "rp" in methods:
-        for method in (k for k in methods if k.startswith("rp_") and k != "rp_paper"):
+        for method in (k for k in methods if k not in ("rp", "rp_paper") and k in ROWS
+                       and ROWS[k].kind == "method"):
             paired_rp[method] = {}
             for ratio in ratios:
                 a, b = stacked(method, ratio), stacked("rp", ratio)
@@ -122,6 +127,8 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
                         "only_method": only_method,
                         "only_rp": only_rp,
                         "p": mcnemar_exact(only_method, only_rp),
+                        # method - rp in points, clustered by (world seed, date)
+                        "interval": clustered(a[:, j], b[:, j]),
                     }
     full = np.concatenate(
         [np.asarray(s["full_map"], bool).reshape(-1, len(THRESHOLDS)) for s in per_seed]

@@ -95,7 +95,8 @@ def paired_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) ->
 
 
 def paired_rp_table(metrics: Mapping, labels: Mapping[str, str], threshold: str) -> list[str]:
-    """Each candidate recipe paired with ``rp``: +only it / -only rp, exact McNemar p."""
+    """Each candidate recipe paired with ``rp``: the difference in points with its clustered
+    95 % interval (where the run has it), +only it / -only rp, exact McNemar p."""
     versus = metrics.get("paired_vs_rp") or {}
     ratios = metrics["ratios"]
     lines = _head("method vs rp", _pct(ratios))
@@ -103,7 +104,14 @@ def paired_rp_table(metrics: Mapping, labels: Mapping[str, str], threshold: str)
         cells = []
         for r in ratios:
             pr = per_ratio[r][threshold]
-            cells.append(f"+{pr['only_method']} / -{pr['only_rp']} (p {_p(pr['p'])})")
+            diff = ""
+            if "interval" in pr and method in metrics.get("accuracy", {}):
+                acc = metrics["accuracy"]
+                d = acc[method][r][threshold] - acc["rp"][r][threshold]
+                lo, hi = pr["interval"]
+                star = "*" if lo > 0 or hi < 0 else ""
+                diff = f"{d:+.1f}{star} [{lo:+.1f}, {hi:+.1f}] "
+            cells.append(f"{diff}+{pr['only_method']} / -{pr['only_rp']} (p {_p(pr['p'])})")
         lines.append(f"| {labels.get(method, method)} | " + " | ".join(cells) + " |")
     return lines
 
@@ -242,6 +250,15 @@ def tables_markdown(metrics: Mapping) -> str:
             *paired_table(metrics, labels, th),
             "",
         ]
+        if metrics.get("paired_vs_rp"):
+            lines += [
+                f"Exploratory: each candidate recipe paired with rp at {th}: the difference "
+                "in points [clustered 95 % interval; * excludes zero] (+queries only the "
+                "row localizes / -only rp, exact McNemar p):",
+                "",
+                *paired_rp_table(metrics, labels, th),
+                "",
+            ]
     auc, sel = metrics["inlier_auc"], metrics.get("selecting_auc") or {}
     lines += _head("row", ["inlier AUC of its score", "selecting AUC"])
     lines += [f"| {labels.get(k, k)} | {_fmt(auc.get(k))} | {_fmt(sel.get(k))} |"
@@ -335,8 +352,9 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
         ]
         if metrics.get("paired_vs_rp"):
             lines += [
-                f"Exploratory: paired with rp at {th} (+queries only the method localizes / "
-                "-only rp, exact McNemar p):",
+                f"Exploratory: each candidate recipe paired with rp at {th}: the difference "
+                "in points [clustered 95 % interval; * excludes zero] (+queries only the "
+                "method localizes / -only rp, exact McNemar p):",
                 "",
                 *paired_rp_table(metrics, labels, th),
                 "",

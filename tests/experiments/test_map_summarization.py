@@ -20,6 +20,8 @@ from rp_jax.sources.colmap_model import opencv_camera
 METHODS = [
     "rp_paper",
     "rp",
+    "outcome_top",
+    "rp_cmu_kcover",
     "kcover",
     "random",
     "most_observed",
@@ -252,8 +254,11 @@ def test_plot_accuracy_vs_pruning_with_intervals(tmp_path):
 def test_methods_and_recipes_of_a_config():
     config, _ = parse(["--size", "tiny"])
     assert mexp.methods_of(config) == METHODS  # the default rows
+    # The recommended row is the outcome scorer's time-agnostic twin, top per part.
+    assert mexp.recipe_of("rp", config) == ("outcome_agnostic", "top")
     config.map.candidates = ("rp_cmu", "rp_paper", "rp_cmu")
-    assert mexp.methods_of(config) == METHODS[:2] + ["rp_cmu"] + METHODS[2:]
+    assert mexp.methods_of(config) == METHODS[:2] + ["rp_cmu"] + METHODS[4:]
+    config.map.rp_method = "rp_cmu_kcover"
     assert mexp.recipe_of("rp", config) == mexp.RP_RECIPES[config.map.rp_method]
     assert mexp.recipe_of("kcover", config) is None
     config.map.rp_method = "rp_magic"
@@ -271,7 +276,9 @@ def test_pool_pairs_a_candidate_recipe_with_rp():
     # rp_conditional alone localizes queries 3 and 4, rp alone query 1.
     assert pooled["paired_vs_rp"]["rp_conditional"]["0.5"]["5m_10deg"] == {
         "only_method": 2, "only_rp": 1, "p": 1.0}
-    assert set(pooled["paired_vs_rp"]) == {"rp_conditional"}  # not the baselines, not rp
+    # every candidate recipe (the default ones and rp_conditional), not the baselines, not
+    # the oracles, not rp
+    assert set(pooled["paired_vs_rp"]) == {"rp_conditional", "outcome_top", "rp_cmu_kcover"}
 
 
 def test_pool_refuses_seeds_of_different_methods():
