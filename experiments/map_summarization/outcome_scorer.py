@@ -106,15 +106,23 @@ def settings_of(config) -> ScorerSettings:
 def training_slices(config, seed: int = 0) -> list[int]:
     """The slices that give labels to a run evaluating on ``config.map.slice``.
 
-    The training slices the layout has (a tiny synthetic world has only slice 6), less the
-    run's own slice; never the test slice.
+    The training slices the layout has (a tiny synthetic world has only slice 6; a given
+    layout, ``config.map.root`` or a real download, the ``slice<N>`` folders it holds),
+    less the run's own slice; never the test slice.
     """
     m = config.map
+    given = None
+    if m.root:
+        given = Path(m.root)
+    elif config.input.data_config == "real":
+        given = Path(config.input.manual_dir or ".") / "cmu_seasons"
     out = []
     for s in TRAINING_SLICES:
         if s == int(m.slice) or s == TEST_SLICE:
             continue
-        if config.input.data_config != "real" and not m.root:
+        if given is not None and not (given / f"slice{s}").is_dir():
+            continue
+        if given is None:
             from rp_jax.sources.synthetic.map_layout import available_query_dates
 
             try:
@@ -123,8 +131,9 @@ def training_slices(config, seed: int = 0) -> list[int]:
                 continue
         out.append(s)
     if not out:
-        raise ValueError(f"no training slice to label outside slice {m.slice} "
-                         f"({config.input.data_config}); the outcome rows need one of "
+        where = f"in {given}" if given is not None else f"({config.input.data_config})"
+        raise ValueError(f"no training slice to label outside slice {m.slice} {where}; the "
+                         "outcome rows need one of "
                          f"{[s for s in TRAINING_SLICES if s != int(m.slice)]}")
     return out
 

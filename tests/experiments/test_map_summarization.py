@@ -274,8 +274,10 @@ def test_pool_pairs_a_candidate_recipe_with_rp():
     a["coverage"]["rp_conditional"] = {"0.5": [3, 5.0]}
     pooled = mexp.pool([a], ["0.5"], resamples=50)
     # rp_conditional alone localizes queries 3 and 4, rp alone query 1.
+    # ... and with one (seed, date) cluster the clustered interval is the difference itself:
+    # (3 - 2) of 4 queries = +25 points.
     assert pooled["paired_vs_rp"]["rp_conditional"]["0.5"]["5m_10deg"] == {
-        "only_method": 2, "only_rp": 1, "p": 1.0}
+        "only_method": 2, "only_rp": 1, "p": 1.0, "interval": [25.0, 25.0]}
     # every candidate recipe (the default ones and rp_conditional), not the baselines, not
     # the oracles, not rp
     assert set(pooled["paired_vs_rp"]) == {"rp_conditional", "outcome_top", "rp_cmu_kcover"}
@@ -472,7 +474,8 @@ def test_the_registry_names_every_row_of_a_run_once():
     labels = methods.labels_of(config)
     assert labels["rp"].startswith("RP (recommended: ") and set(labels) == set(names)
     assert methods.oracles_of(config) == ["oracle_agnostic", "oracle_date", "oracle_inliers"]
-    assert methods.predictors_needed(config) == ["robotcar", "cmu"]  # rp_cmu_kcover
+    # rp (outcome_agnostic_top), outcome_top and rp_cmu_kcover
+    assert methods.predictors_needed(config) == ["robotcar", "cmu", "outcome", "outcome_agnostic"]
     with pytest.raises(ValueError, match="already registered"):
         methods.register(methods.ROWS["kcover"])
     with pytest.raises(ValueError, match="per='hourly'"):
