@@ -533,7 +533,7 @@ def plot_accuracy_vs_pruning(
     """
     # The legend takes a column of its own to the right of the panels, so that it never
     # hides a line (a run has up to 16 rows).
-    fig = _new_figure(5.2 * len(thresholds) + 3.4, 4.2)
+    fig = _new_figure(5.2 * len(thresholds), 4.2)
     axes = fig.subplots(1, len(thresholds), squeeze=False)[0]
     labels = labels or {}
     methods = list(accuracy)
@@ -578,9 +578,11 @@ def plot_accuracy_vs_pruning(
     )
     for ax in axes:
         ax.set_ylim(max(-2.0, 10.0 * np.floor(lowest / 10.0) - 5.0), 102)
+    # Outside the last panel, to its right: the saved image grows to hold it
+    # (``bbox_inches="tight"``), however long the labels.
     handles, names = axes[0].get_legend_handles_labels()
-    fig.legend(handles, names, loc="center right", fontsize=7, frameon=False)
-    fig.subplots_adjust(right=1 - 3.2 / (5.2 * len(thresholds) + 3.4), wspace=0.25)
+    axes[-1].legend(handles, names, loc="center left", bbox_to_anchor=(1.02, 0.5), fontsize=7,
+                    frameon=False)
     if title:
         fig.suptitle(title)
     return save_figure(fig, out)
