@@ -402,8 +402,7 @@ def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTIO
     from experiments.map_summarization import methods
 
     try:
-        rows = [k for k in metrics["methods"]
-                if k != "rp" and k in methods.RP_RECIPES or k.startswith("outcome")]
+        rows = [k for k in metrics["methods"] if methods.is_candidate(k)]
         ratios, acc = metrics["ratios"], metrics["accuracy"]
         score = {k: sum(acc[k][r][th] for r in ratios for th in ("0.5m_5deg", "5m_10deg"))
                  / (2 * len(ratios)) for k in rows}

@@ -531,8 +531,6 @@ def plot_accuracy_vs_pruning(
     Returns:
       The PNG written.
     """
-    # The legend takes a column of its own to the right of the panels, so that it never
-    # hides a line (a run has up to 16 rows).
     fig = _new_figure(5.2 * len(thresholds), 4.2)
     axes = fig.subplots(1, len(thresholds), squeeze=False)[0]
     labels = labels or {}

@@ -74,6 +74,7 @@ __all__ = [
     "Row",
     "WorldContext",
     "default_rows",
+    "is_candidate",
     "labels_of",
     "load_extensions",
     "methods_of",
@@ -401,6 +402,13 @@ def row_of(name: str, config) -> Row:
     if name not in ROWS:
         raise ValueError(f"unknown row {name!r}; expected one of {['rp', *ROWS]}")
     return ROWS[name]
+
+
+def is_candidate(name: str) -> bool:
+    """Whether row ``name`` is a candidate recipe for ``rp``: a registered row of kind
+    "method" other than ``rp`` itself (``rp_paper`` included; the outcome rows once their
+    module is loaded)."""
+    return name != "rp" and name in ROWS and ROWS[name].kind == "method"
 
 
 def default_rows() -> list[str]:

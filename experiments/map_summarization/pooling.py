@@ -111,12 +111,11 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     # Each candidate recipe (a row of kind "method" in the registry, the outcome scorer's
     # included) paired with ``rp`` as well: e.g. the time-aware twin against the
     # recommended time-agnostic scorer, rp_conditional against rp.
-    from experiments.map_summarization.methods import ROWS
+    from experiments.map_summarization.methods import is_candidate
 
     paired_rp: dict = {}
     if "rp" in methods:
-        for method in (k for k in methods if k not in ("rp", "rp_paper") and k in ROWS
-                       and ROWS[k].kind == "method"):
+        for method in (k for k in methods if is_candidate(k) and k != "rp_paper"):
             paired_rp[method] = {}
             for ratio in ratios:
                 a, b = stacked(method, ratio), stacked("rp", ratio)

@@ -116,6 +116,20 @@ def paired_rp_table(metrics: Mapping, labels: Mapping[str, str], threshold: str)
     return lines
 
 
+def paired_rp_section(metrics: Mapping, labels: Mapping[str, str], threshold: str) -> list[str]:
+    """The captioned ``paired_rp_table`` (nothing when the run has no candidate recipe)."""
+    if not metrics.get("paired_vs_rp"):
+        return []
+    return [
+        f"Exploratory: each candidate recipe paired with rp at {threshold}: the difference in "
+        "points [clustered 95 % interval; * excludes zero] (+queries only the row localizes / "
+        "-only rp, exact McNemar p):",
+        "",
+        *paired_rp_table(metrics, labels, threshold),
+        "",
+    ]
+
+
 def findings_vs_rp(metrics: Mapping, labels: Mapping[str, str]) -> list[str]:
     """Where each candidate recipe localizes significantly more (or fewer) queries than rp."""
     out = []
@@ -250,15 +264,7 @@ def tables_markdown(metrics: Mapping) -> str:
             *paired_table(metrics, labels, th),
             "",
         ]
-        if metrics.get("paired_vs_rp"):
-            lines += [
-                f"Exploratory: each candidate recipe paired with rp at {th}: the difference "
-                "in points [clustered 95 % interval; * excludes zero] (+queries only the "
-                "row localizes / -only rp, exact McNemar p):",
-                "",
-                *paired_rp_table(metrics, labels, th),
-                "",
-            ]
+        lines += paired_rp_section(metrics, labels, th)
     auc, sel = metrics["inlier_auc"], metrics.get("selecting_auc") or {}
     lines += _head("row", ["inlier AUC of its score", "selecting AUC"])
     lines += [f"| {labels.get(k, k)} | {_fmt(auc.get(k))} | {_fmt(sel.get(k))} |"
@@ -350,15 +356,7 @@ def markdown(metrics: Mapping, config, labels: Mapping[str, str]) -> str:
             *paired_table(metrics, labels, th),
             "",
         ]
-        if metrics.get("paired_vs_rp"):
-            lines += [
-                f"Exploratory: each candidate recipe paired with rp at {th}: the difference "
-                "in points [clustered 95 % interval; * excludes zero] (+queries only the "
-                "method localizes / -only rp, exact McNemar p):",
-                "",
-                *paired_rp_table(metrics, labels, th),
-                "",
-            ]
+        lines += paired_rp_section(metrics, labels, th)
     cov = metrics["image_coverage"]
     lines += [
         "## Kept points per database image (min / median over images, pooled over seeds)",
