@@ -21,7 +21,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from rp_jax import time_encoding
+from rp_jax import time_fields
 from rp_jax.files import OutputExistsError
 from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
@@ -83,7 +83,7 @@ def datetime_flag(text: str) -> dt.datetime:
 
 
 # What each of the paper's time inputs (Sec. III-B) reads, in words.
-TIME_INPUTS = time_encoding.READS
+TIME_INPUTS = time_fields.READS
 # --max-size of a workdir that does not say its training resolution: the longer side of
 # Extended CMU Seasons' 1024x768 images.
 FALLBACK_MAX_SIZE = 1024

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 __all__ = ["quaternion_to_rotation", "rotation_to_quaternion"]
 
@@ -30,11 +29,15 @@ def quaternion_to_rotation(q: Sequence[float]) -> np.ndarray:
     if n == 0.0:
         raise ValueError("a quaternion of norm 0 is no rotation (qw qx qy qz = 0 0 0 0)")
     w, x, y, z = q / n
+    from scipy.spatial.transform import Rotation  # here: SciPy's import is most of a --help
+
     return Rotation.from_quat([x, y, z, w]).as_matrix()
 
 
 def rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
     """Unit quaternion ``(qw, qx, qy, qz)`` of a rotation matrix, with ``qw >= 0``."""
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w = Rotation.from_matrix(np.asarray(R, dtype=np.float64).reshape(3, 3)).as_quat()
     q = np.array([w, x, y, z])
     return -q if q[0] < 0 else q

@@ -27,22 +27,12 @@ from typing import Literal
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["FIELDS", "ENCODINGS", "encode", "num_features", "fields_from_datetimes"]
+# FIELDS, ENCODINGS and READS live in rp_jax.time_fields (no JAX there, for the commands'
+# --help) and are re-exported here.
+from rp_jax.time_fields import ENCODINGS, FIELDS, READS
 
-# Which fields each of the paper's three representations uses.
-FIELDS = {
-    "time_of_day": ("hour", "minute"),
-    "day_of_year": ("day", "month"),
-    "hour_of_year": ("hour", "minute", "day", "month"),
-}
-ENCODINGS = ("raw", "cyclic")
-# What each representation reads of a time, in words: what the commands print and each
-# shipped model's model.json says (a time-of-day model ignores the date, and the reverse).
-READS = {
-    "time_of_day": "the time of day (hour and minute), not the date",
-    "day_of_year": "the day of the year (day and month), not the hour",
-    "hour_of_year": "the time of day and the day of the year",
-}
+__all__ = ["FIELDS", "ENCODINGS", "READS", "encode", "num_features", "fields_from_datetimes"]
+
 # Days before the first of each month, 365-day year (29 Feb is read as 28 Feb). NumPy, not
 # jnp: a jnp array built at import time would start JAX's backend (see tests/test_imports.py).
 _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30]).astype(np.float32)
