@@ -13,6 +13,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from tests.datasets._tiny import tiny_data_copy
+
 NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 
 
@@ -32,9 +34,19 @@ def _execute(name: str, env: dict, cwd: Path):
     return nb
 
 
+def _with_tiny_world(tmp_path_factory, name: str, work: Path, world: str) -> None:
+    """``work/tfds`` and ``work/<world>`` as the notebook would make them: copies of the
+    session's tiny build and world of ``name`` (rendered and labelled once for every test
+    that reads them; tests/datasets/ tests the builds). The notebook's ``generate`` then
+    finds every frame (it skips existing ones) and its experiment the dataset built."""
+    data = tiny_data_copy(tmp_path_factory, [name], work)
+    (data.parent / "synthetic" / f"{name}_tiny").rename(work / world)
+
+
 @pytest.mark.slow
-def test_quickstart_then_explore(tmp_path):
+def test_quickstart_then_explore(tmp_path, tmp_path_factory):
     work = tmp_path / "qs"
+    _with_tiny_world(tmp_path_factory, "webcam_clipart", work, "synthetic/webcam_clipart")
     env = {"RP_JAX_NOTEBOOK_SIZE": "tiny", "RP_JAX_NOTEBOOK_DIR": str(work),
            "RP_JAX_WORKDIR": str(work / "run"), "RP_JAX_TFDS_DIR": str(work / "tfds"),
            "RP_JAX_NO_CPU_SETUP": "1"}
@@ -51,7 +63,8 @@ def test_quickstart_then_explore(tmp_path):
 
 
 @pytest.mark.slow
-def test_own_data(tmp_path):
+def test_own_data(tmp_path, tmp_path_factory):
+    _with_tiny_world(tmp_path_factory, "cmu_seasons", tmp_path / "od", "cmu_world")
     env = {"RP_JAX_NOTEBOOK_DIR": str(tmp_path / "od"), "RP_JAX_NO_CPU_SETUP": "1"}
     nb = _execute("own_data.ipynb", env, tmp_path)
     outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"

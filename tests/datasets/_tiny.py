@@ -3,11 +3,16 @@
 ``shared_data_dir`` is one TFDS data dir for the whole test session, seen by every xdist
 worker: each tiny world is rendered and each tiny dataset built there once, by the first
 test that asks (``build_tiny`` holds a lock per dataset while it builds, so a second worker
-waits and then finds the build done). Tests read it and copy what they change.
+waits and then finds the build done). Tests read it and copy what they change:
+``tiny_data_copy`` gives a test a data dir of its own holding copies of the session's tiny
+builds (and their worlds), so the end-to-end runs of the experiments and notebooks read
+built datasets instead of each rendering and labelling the same tiny world again.
 """
 
 from __future__ import annotations
 
+import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +38,31 @@ def build_tiny(name: str, data_dir: Path, **kwargs):
         b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
         b.download_and_prepare()
     return b
+
+
+def tiny_data_copy(tmp_path_factory, names: Sequence[str], dest: Path) -> Path:
+    """A TFDS data dir in ``dest`` holding a copy of the session's tiny build of each of
+    ``names`` (built first where missing), with what the experiments read beside it.
+
+    ``dest/tfds``: each dataset's ``synthetic_tiny`` build and its label cache
+    (``downloads/groundtruth``); ``dest/synthetic``: the rendered tiny worlds, where
+    ``builder.synthetic_root`` looks for them. A command given ``--data-dir dest/tfds`` finds
+    everything built, as on its own second run, and may change its copy freely.
+
+    Returns:
+      ``dest/tfds``.
+    """
+    shared = shared_data_dir(tmp_path_factory)
+    data_dir = Path(dest) / "tfds"
+    for name in names:
+        build_tiny(name, shared)
+        with _session_cache.locked(shared.parent / f".build-{name}.lock"):
+            for rel in (Path(name), Path("downloads") / "groundtruth" / name / TINY):
+                shutil.copytree(shared / rel, data_dir / rel,
+                                ignore=shutil.ignore_patterns("*.lock"))
+            world = Path("synthetic") / f"{name}_tiny"
+            shutil.copytree(shared.parent / world, Path(dest) / world)
+    return data_dir
 
 
 def all_records(b, split: str) -> list[dict]:

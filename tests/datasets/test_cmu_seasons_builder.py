@@ -10,14 +10,12 @@ import pytest
 
 pytest.importorskip("tensorflow_datasets")
 
-from rp_jax.datasets import loading
 from rp_jax.schedule import load_spec, preset
-from tests.datasets._tiny import TINY, all_records, check_records
+from tests.datasets._tiny import all_records, build_tiny, check_records, shared_data_dir
 
 
-def test_cmu_seasons_tiny_splits_by_slice(tmp_path):
-    b = loading.get_builder("cmu_seasons", config=TINY, data_dir=tmp_path / "tfds", workers=1)
-    b.download_and_prepare()
+def test_cmu_seasons_tiny_splits_by_slice(tmp_path_factory):
+    b = build_tiny("cmu_seasons", shared_data_dir(tmp_path_factory))
     spec = load_spec("cmu_seasons")["splits"]
     assert set(b.info.splits) == {"train", "test"}
     for split in ("train", "test"):

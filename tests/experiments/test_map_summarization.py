@@ -16,6 +16,7 @@ from rp_jax.localize import read_submission
 from rp_jax.mapsum import MapPoints, read_model
 from rp_jax.mapsum.observations import point_categories, query_scores
 from rp_jax.sources.colmap_model import opencv_camera
+from tests.datasets._tiny import tiny_data_copy
 
 METHODS = [
     "rp_paper",
@@ -40,13 +41,16 @@ def tiny_run(tmp_path_factory):
     """The whole experiment at tiny size, from its command line (1 epoch, 3 ratios)."""
     tmp = tmp_path_factory.mktemp("mapsum")
     workdir = tmp / "run"
+    # The session's tiny RobotCar and CMU builds and worlds (rendered and labelled once for
+    # every test that reads them; their builds are tested in tests/datasets/).
+    data_dir = tiny_data_copy(tmp_path_factory, ["robotcar", "cmu_seasons"], tmp / "data")
     argv = [
         "--size",
         "tiny",
         "--workdir",
         str(workdir),
         "--data-dir",
-        str(tmp / "tfds"),
+        str(data_dir),
         "--config.train.num_epochs=1",
         f"--config.map.ratios=({','.join(RATIOS)})",
         # A query that fails runs every RANSAC iteration (27 ms at 5000): most of a test's

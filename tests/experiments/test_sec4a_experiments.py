@@ -11,6 +11,7 @@ import pytest
 from experiments import cli
 from experiments.cmu_seasons.config import get_config as cmu_config
 from experiments.webcam_clipart.config import get_config as webcam_config
+from tests.datasets._tiny import tiny_data_copy
 
 KEYS = {"test_mse", "test_mae", "curve_corr", "baselines", "counts", "timings", "curves", "figures"}
 BASELINES = {"per_slot_mean", "slot_conditioned_mean", "descriptor_knn"}
@@ -37,9 +38,13 @@ def _not_blank(path):
         ),
     ],
 )
-def test_experiment_tiny(tmp_path, monkeypatch, name, get_config, figures):
+def test_experiment_tiny(tmp_path, tmp_path_factory, monkeypatch, name, get_config, figures):
     workdir = tmp_path / "run"
-    argv = ["--size", "tiny", "--workdir", str(workdir), "--data-dir", str(tmp_path / "tfds")]
+    # The session's tiny build of the dataset (rendered and labelled once for every test
+    # that reads it; its build is tested in tests/datasets/): the run reads it as on its
+    # own second run, and trains, predicts and reports from the command line.
+    data_dir = tiny_data_copy(tmp_path_factory, [name], tmp_path / "data")
+    argv = ["--size", "tiny", "--workdir", str(workdir), "--data-dir", str(data_dir)]
     # As if run as `python -m experiments.<name> ARGV`: the report must record that command.
     monkeypatch.setattr(sys, "orig_argv", ["/venv/bin/python3", "-m", f"experiments.{name}", *argv])
     assert cli.main(argv, name, get_config, "") == 0
@@ -188,10 +193,11 @@ def test_split_validation_holds_out_whole_viewpoints():
     assert not split_validation(np.array(["a", "a"]), 0.5, seed=0).any()
 
 
-def test_cross_validate_flag_needs_two_training_viewpoints(tmp_path, capsys):
+def test_cross_validate_flag_needs_two_training_viewpoints(tmp_path, tmp_path_factory, capsys):
     # The tiny synthetic world has one training scene: a clear error, not a traceback.
+    data_dir = tiny_data_copy(tmp_path_factory, ["webcam_clipart"], tmp_path / "data")
     argv = ["--size", "tiny", "--workdir", str(tmp_path / "run"),
-            "--data-dir", str(tmp_path / "tfds"), "--cross-validate"]
+            "--data-dir", str(data_dir), "--cross-validate"]
     assert cli.main(argv, "webcam_clipart", webcam_config, "") == 2
     assert "at least 2 training viewpoints" in capsys.readouterr().err
     with pytest.raises(SystemExit):
