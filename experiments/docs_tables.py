@@ -46,6 +46,7 @@ __all__ = [
     "BLOCKS",
     "check",
     "collect",
+    "label_scale_table",
     "render_blocks",
     "replace_blocks",
     "sec4a_headline",
@@ -350,6 +351,33 @@ def benchmark_scaling(results: Mapping | None) -> str:
     return "\n".join(out).rstrip("\n") + "\n\nFrom the same run as the table above.\n"
 
 
+def label_scale_table(results: Mapping | None) -> str:
+    """The ``label_scale`` stage of ``benchmark.json``: one Webcam-like viewpoint labelled
+    at each size (Sec. III-D at the paper's scale), with when, where and under what load each
+    row was measured, and how the CPU cost per frame varies over the sizes."""
+    entry = (results or {}).get("label_scale") or {}
+    rows = entry.get("label_scale") or []
+    if not rows:
+        return "_No `label_scale` result is committed (`experiments/results/benchmark.json`)._\n"
+    out = ["| frames | CPU s | CPU s per frame | peak memory, MB | records | wall s | "
+           "load (1 min) | measured |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['frames']:,} | {r['cpu_s']:,.0f} | {r['cpu_s'] / r['frames']:.3f} | "
+                   f"{r['peak_rss_mb']:,.0f} | {r['records']:,} | {r['wall_s']:,.0f} | "
+                   f"{r.get('load_average_1min', float('nan')):.1f} | "
+                   f"{r.get('measured_at', '?').replace('T', ' ')} UTC, "
+                   f"{r.get('cpu_model', entry.get('cpu_model', '?'))} |")
+    per = [r["cpu_s"] / r["frames"] for r in rows]
+    out.append("")
+    out.append(f"CPU seconds per frame from {min(per):.3f} to {max(per):.3f} "
+               f"({max(per) / min(per) - 1:+.0%} from the cheapest); peak memory at most "
+               f"{max(r['peak_rss_mb'] for r in rows):,.0f} MB. "
+               f"{entry.get('ours', {}).get('variant', '')}. Run: `python -m experiments.benchmark "
+               "label_scale --label-scale-frames N ...`; rows of earlier runs are kept, each "
+               "with its own time, machine and load.")
+    return "\n".join(out) + "\n"
+
+
 def _num(x: float) -> str:
     """Three significant figures; thousands separated."""
     if x >= 1e6 or 0 < x < 1e-2:
@@ -439,6 +467,7 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM)),
     "benchmark": lambda root: benchmark_table(read_json(root / BENCHMARK)),
     "benchmark_scaling": lambda root: benchmark_scaling(read_json(root / BENCHMARK)),
+    "label_scale": lambda root: label_scale_table(read_json(root / BENCHMARK)),
     "map_summarization": lambda root: map_summarization_tables(read_json(root / MAPSUM)),
     "map_summarization_unseen_seeds": lambda root: map_summarization_tables(
         read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),

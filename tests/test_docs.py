@@ -282,3 +282,16 @@ def test_recipe_selection_ranks_the_candidates_by_their_mean_over_ratios_and_thr
     assert "No recipe-selection run" in docs_tables.recipe_selection_table(None)
     with pytest.raises(ValueError, match="not the layout"):
         docs_tables.recipe_selection_table({"methods": ["outcome"], "accuracy": {}})
+
+
+def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
+    rows = [{"frames": n, "cpu_s": c, "wall_s": 2 * c, "peak_rss_mb": 480.0 + n / 1000,
+             "records": 10_000, "load_average_1min": 1.5, "measured_at": "2030-01-01T10:00:00",
+             "cpu_model": "AMD EPYC"} for n, c in ((1000, 200.0), (10000, 2500.0))]
+    text = docs_tables.label_scale_table({"label_scale": {"label_scale": rows,
+                                                          "ours": {"variant": "84 sources"}}})
+    row = "| 1,000 | 200 | 0.200 | 481 | 10,000 | 400 | 1.5 | 2030-01-01 10:00:00 UTC, AMD EPYC |"
+    assert row in text
+    assert "| 10,000 | 2,500 | 0.250 |" in text
+    assert "from 0.200 to 0.250 (+25% from the cheapest)" in text and "at most 490 MB" in text
+    assert "No `label_scale` result" in docs_tables.label_scale_table({})

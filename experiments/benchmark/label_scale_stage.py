@@ -235,6 +235,7 @@ def run_label_scale_stage(size_name: str, repeats: int = 1, progress: bool = Tru
         msg["resumed"] = resumed
         msg["measured_at"] = dt.datetime.now().isoformat(timespec="seconds")
         msg["load_average_1min"] = os.getloadavg()[0]
+        msg["cpu_model"] = _cpu_model()  # rows of other runs are kept: each says its machine
         rows.append(msg)
         shutil.rmtree(cache, ignore_errors=True)
         if progress:
