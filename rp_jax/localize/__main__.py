@@ -49,7 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--ground-truth-format", choices=tuple(pose_files.FORMATS),
                    help="what the last three numbers of a --ground-truth line are: submission, "
                    "the translation t (visuallocalization.net); camera-centre, the camera "
-                   "centre C (Extended CMU Seasons / RobotCar Seasons ground truth, t = -R C)")
+                   "centre C (Extended CMU Seasons ground truth, t = -R C)")
     p.add_argument("--intrinsics", metavar="FILE",
                    help="query cameras: hloc's queries_with_intrinsics.txt lines 'name MODEL W "
                    "H params...' (COLMAP models), or the dataset's intrinsics.txt of 'c0 OPENCV "

@@ -10,8 +10,9 @@ are:
 * ``camera-centre``: the camera centre ``C`` in the world, so ``t = -R C``: the Extended
   CMU Seasons ground truth (``ground-truth-database-images-slice{N}.txt``,
   ``slice{N}/camera-poses/*.txt``, ``_evaluation/ground-truth-query-images-slice{N}.txt``;
-  ``rp_jax.sources.cmu_seasons.pose_from_ground_truth``, the one home of that conversion)
-  and the RobotCar Seasons files of the same shape.
+  ``rp_jax.sources.cmu_seasons.pose_from_ground_truth``, the one home of that conversion).
+  RobotCar Seasons releases no file of this shape (its reference poses are an NVM model, its
+  v2 query poses 4x4 matrices: ``rp_jax.sources.robotcar_seasons`` reads both).
 
 Read one as the other and every query is off by ``|t - C|``, metres to kilometres: the
 accuracy table reads 0 % with exit status 0. So a file is read only in a convention it
@@ -55,7 +56,7 @@ FORMATS = {
 }
 WHAT = {
     SUBMISSION: "translation t (visuallocalization.net submission)",
-    CAMERA_CENTRE: "camera centre C (Extended CMU Seasons / RobotCar Seasons ground truth)",
+    CAMERA_CENTRE: "camera centre C (Extended CMU Seasons ground truth)",
 }
 # Extended CMU Seasons ground-truth files, by name or by the folder the release puts them in.
 _CMU_GROUND_TRUTH = re.compile(r"ground-truth-(database|query)-images-slice\d+\.txt$")
