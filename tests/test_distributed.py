@@ -41,7 +41,9 @@ def _free_port() -> int:
 def _launch(workdir: Path, logs: Path, *extra: str) -> list[subprocess.Popen]:
     # One CPU device per process (no forced device count from conftest); a persistent
     # compilation cache shared by the launches, so the restarted run does not compile again.
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = " ".join(f for f in env.get("XLA_FLAGS", "").split()  # as this process
+                                if not f.startswith("--xla_force_host_platform_device_count"))
     env.update(RP_JAX_NO_CPU_SETUP="1", JAX_COMPILATION_CACHE_DIR=str(logs / "jax_cache"),
                JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0",
                JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES="0")
