@@ -52,10 +52,11 @@ from rp_jax.sources.layout import LayoutError, ReadCounts, require_layout, zone
 
 __all__ = [
     "CAMERAS", "CAPTURE_DATES", "CONDITIONS", "IMAGE_SIZE", "NVM_PATH", "QUERY_CONDITIONS",
-    "REFERENCE_CONDITION", "V2_TRAIN", "NvmImage", "capture_time", "find_cameras",
+    "REFERENCE_CONDITION", "TRAVERSALS", "V2_TRAIN", "NvmImage", "capture_time", "find_cameras",
     "find_conditions", "image_name", "parse_image_name", "query_list_lines", "read_captures",
     "read_intrinsics", "read_nvm", "read_query_list", "read_v2_poses", "reference_poses",
-    "submission_name", "write_intrinsics", "write_nvm", "write_query_lists", "write_v2_poses",
+    "submission_name", "traversal_start", "write_intrinsics", "write_nvm", "write_query_lists",
+    "write_v2_poses",
 ]
 
 log = logging.getLogger(__name__)
@@ -73,6 +74,18 @@ CAPTURE_DATES = {c: dt.date(*d) for c, d in {
     "night": (2014, 12, 10), "night-rain": (2014, 12, 17), "overcast-summer": (2015, 5, 22),
     "overcast-winter": (2015, 11, 13), "rain": (2014, 11, 25), "snow": (2015, 2, 3),
     "sun": (2015, 3, 10)}.items()}
+# The Oxford RobotCar traversal (folder name: its start, UTC) behind each condition, as
+# public code that maps RobotCar Seasons images back to RobotCar quotes them; their dates
+# are the README's capture dates above (a test checks that the two sources agree). The
+# times of day are what a synthetic query traversal needs: in Oxford (rp_jax.sun), "dawn"
+# and "dusk" start with the sun about 7 degrees above the horizon, the two night
+# traversals with it 20 degrees below (astronomical night), the reference at 17 degrees.
+TRAVERSALS = {
+    "overcast-reference": "2014-11-28-12-07-13", "dawn": "2014-12-16-09-14-09",
+    "dusk": "2015-02-20-16-34-06", "night": "2014-12-10-18-10-50",
+    "night-rain": "2014-12-17-18-18-43", "overcast-summer": "2015-05-22-11-14-30",
+    "overcast-winter": "2015-11-13-10-28-08", "rain": "2014-11-25-09-18-32",
+    "snow": "2015-02-03-08-45-10", "sun": "2015-03-10-14-18-10"}
 IMAGE_SIZE = (1024, 1024)  # hloc's generate_query_list: h, w = 1024, 1024
 NVM_PATH = "3D-models/all-merged/all.nvm"
 INTRINSICS = "intrinsics/{camera}_intrinsics.txt"
@@ -106,6 +119,19 @@ def submission_name(name: str) -> str:
     (README; hloc's ``prepend_camera_name``); other names are returned unchanged."""
     parsed = parse_image_name(name)
     return f"{parsed[1]}/{parsed[2]}.jpg" if parsed else name
+
+
+def traversal_start(condition: str) -> dt.datetime:
+    """When the RobotCar traversal behind ``condition`` started (UTC; ``TRAVERSALS``).
+
+    Raises:
+      ValueError: not a RobotCar Seasons condition.
+    """
+    if condition not in TRAVERSALS:
+        raise ValueError(f"{condition!r} is not a {DATASET} condition; expected one of "
+                         f"{', '.join(CONDITIONS)}")
+    return dt.datetime.strptime(TRAVERSALS[condition], "%Y-%m-%d-%H-%M-%S").replace(
+        tzinfo=dt.UTC)
 
 
 def capture_time(unix_us: int, tz_name: str | None = None) -> dt.datetime:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from rp_jax import sun
 from rp_jax.localize.submission import read_submission, write_submission
 from rp_jax.sources import robotcar_seasons as rs
 from rp_jax.sources.capture import Camera
@@ -245,3 +246,25 @@ def test_missing_parts_of_the_layout_are_named(tmp_path, caplog):
     (tmp_path / "intrinsics/right_intrinsics.txt").unlink()
     with pytest.raises(LayoutError, match=r"right/.*no .*right_intrinsics.txt"):
         rs.read_captures(tmp_path)
+
+
+def test_each_condition_has_its_traversal_on_the_readmes_capture_date():
+    """Two independent sources: the README's capture dates and the RobotCar folder names that
+    public code maps RobotCar Seasons images to."""
+    assert set(rs.TRAVERSALS) == set(rs.CONDITIONS) == set(rs.CAPTURE_DATES)
+    for condition in rs.CONDITIONS:
+        start = rs.traversal_start(condition)
+        assert start.date() == rs.CAPTURE_DATES[condition], condition
+        assert start.tzinfo == dt.UTC
+    local = {c: rs.capture_time(int(rs.traversal_start(c).timestamp() * 1e6))
+             for c in ("night", "night-rain", "dawn", "sun")}
+    assert local["night"].hour >= 18 and local["night-rain"].hour >= 18  # GMT in December
+    assert local["dawn"].hour == 9 and local["sun"].hour == 14
+    oxford = (51.752, -1.2577)
+    elevation = {c: float(sun.solar_position(sun.unix_seconds(rs.traversal_start(c)), *oxford)[0])
+                 for c in rs.CONDITIONS}
+    assert 0 < elevation["dawn"] < 10 and 0 < elevation["dusk"] < 10  # a low sun, not a dark sky
+    assert elevation["night"] < -18 and elevation["night-rain"] < -18  # astronomical night
+    assert min(v for c, v in elevation.items() if "night" not in c) > 0  # every other by day
+    with pytest.raises(ValueError, match="not a RobotCar Seasons condition"):
+        rs.traversal_start("fog")
