@@ -91,6 +91,40 @@ def test_predict_does_not_import_train():
         assert "rp_jax.train" not in imported, f"rp_jax/{name}.py imports rp_jax.train"
 
 
+_HELP_CHILD = textwrap.dedent(
+    """
+    import sys
+    from rp_jax.keypoints import __main__ as keypoints
+    from rp_jax.mapsum import __main__ as mapsum
+
+    keypoints._parser().format_help()
+    mapsum._parser().format_help()
+    print(sorted(m for m in ("jax", "scipy", "pycolmap", "tensorflow") if m in sys.modules))
+    """
+)
+
+
+def test_the_commands_answer_help_without_jax_or_scipy():
+    """``python -m rp_jax.keypoints --help`` and ``rp_jax.mapsum ... --help`` answer in well
+    under a second: building their parsers imports none of the heavy libraries (importing
+    JAX alone took 3 to 4 s of CPU)."""
+    proc = subprocess.run([sys.executable, "-c", _HELP_CHILD], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip() == "[]", proc.stdout
+
+
+def test_mapsum_partition_is_the_function_whatever_imported_the_submodule_first():
+    """``rp_jax.mapsum`` imports its names on first use; ``partition`` is also a submodule's
+    name, and stays the function."""
+    import rp_jax.mapsum
+    import rp_jax.mapsum.partition  # noqa: F401
+
+    assert callable(rp_jax.mapsum.partition) and rp_jax.mapsum.partition.__name__ == "partition"
+    assert rp_jax.mapsum.kcover_keep.__module__ == "rp_jax.mapsum.kcover"
+    assert set(rp_jax.mapsum.__all__) <= set(dir(rp_jax.mapsum))
+
+
 def test_localize_does_not_import_mapsum():
     """mapsum builds on localize (its oracles match 2D-3D); localize must not import mapsum
     back: the COLMAP map model both use lives below them, in rp_jax.sources.colmap_model."""

@@ -18,8 +18,6 @@ contiguous part id in ``[0, n_parts)`` per point:
 from __future__ import annotations
 
 import numpy as np
-from scipy.cluster.vq import kmeans2
-from scipy.spatial import cKDTree
 
 __all__ = ["grid_partition", "ground_plane_coordinates", "kmeans_partition", "partition"]
 
@@ -101,6 +99,9 @@ def kmeans_partition(
         if len(xyz) <= max_fit_points
         else xyz[rng.choice(len(xyz), max_fit_points, replace=False)]
     )
+    from scipy.cluster.vq import kmeans2  # here: rp_jax.mapsum imports this module eagerly
+    from scipy.spatial import cKDTree
+
     centres, _ = kmeans2(fit, n_parts, minit="++", seed=rng)
     _, label = cKDTree(centres).query(xyz)
     return _relabel(label)
