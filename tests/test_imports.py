@@ -95,34 +95,41 @@ _HELP_CHILD = textwrap.dedent(
     """
     import sys
     from rp_jax.keypoints import __main__ as keypoints
+    from rp_jax.localize import __main__ as localize
     from rp_jax.mapsum import __main__ as mapsum
 
-    keypoints._parser().format_help()
-    mapsum._parser().format_help()
+    for command in (keypoints, mapsum, localize):
+        command._parser().format_help()
     print(sorted(m for m in ("jax", "scipy", "pycolmap", "tensorflow") if m in sys.modules))
     """
 )
 
 
 def test_the_commands_answer_help_without_jax_or_scipy():
-    """``python -m rp_jax.keypoints --help`` and ``rp_jax.mapsum ... --help`` answer in well
-    under a second: building their parsers imports none of the heavy libraries (importing
-    JAX alone took 3 to 4 s of CPU)."""
+    """``python -m rp_jax.keypoints / mapsum / localize --help`` answer in well under a
+    second: building their parsers imports none of the heavy libraries (importing JAX alone
+    took 3 to 4 s of CPU)."""
     proc = subprocess.run([sys.executable, "-c", _HELP_CHILD], cwd=ROOT, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip() == "[]", proc.stdout
 
 
-def test_mapsum_partition_is_the_function_whatever_imported_the_submodule_first():
-    """``rp_jax.mapsum`` imports its names on first use; ``partition`` is also a submodule's
-    name, and stays the function."""
+def test_lazy_packages_keep_their_functions_named_like_submodules():
+    """``rp_jax.mapsum`` and ``rp_jax.localize`` import their names on first use;
+    ``partition`` and ``vlad`` are also submodules' names, and stay the functions."""
+    import rp_jax.localize
+    import rp_jax.localize.vlad
     import rp_jax.mapsum
     import rp_jax.mapsum.partition  # noqa: F401
 
     assert callable(rp_jax.mapsum.partition) and rp_jax.mapsum.partition.__name__ == "partition"
+    assert callable(rp_jax.localize.vlad) and rp_jax.localize.vlad.__name__ == "vlad"
     assert rp_jax.mapsum.kcover_keep.__module__ == "rp_jax.mapsum.kcover"
-    assert set(rp_jax.mapsum.__all__) <= set(dir(rp_jax.mapsum))
+    assert rp_jax.localize.match_2d3d.__module__ == "rp_jax.localize.matching"
+    for package in (rp_jax.mapsum, rp_jax.localize):
+        assert set(package.__all__) <= set(dir(package))
+        assert all(getattr(package, name) is not None for name in package.__all__)
 
 
 def test_localize_does_not_import_mapsum():

@@ -20,8 +20,6 @@ from pathlib import Path
 from rp_jax import command_line, files, progress
 from rp_jax.commands import OVERWRITE_HELP, InputError, run_command
 from rp_jax.localize import pose_files
-from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS
-from rp_jax.localize.run import RESULTS, SUBMISSION, localize_folder, threshold_key
 
 PROG = "python -m rp_jax.localize"
 
@@ -88,6 +86,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         progress.set_quiet()
 
     def body() -> int:
+        # Here, not at the top: --help and a bad flag need none of the pipeline's libraries.
+        from rp_jax.localize.evaluate import DEFAULT_THRESHOLDS
+        from rp_jax.localize.run import RESULTS, SUBMISSION, localize_folder, threshold_key
+
         for flag, folder, what in (("--map", args.map, "map folder"),
                                    ("--queries", args.queries, "folder of query images")):
             if not Path(folder).is_dir():

@@ -12,8 +12,6 @@ normalisation (alpha = 0.5) and a final L2 normalisation. Any other global descr
 from __future__ import annotations
 
 import numpy as np
-from scipy.cluster.vq import kmeans2
-from scipy.spatial import cKDTree
 
 __all__ = ["learn_vocabulary", "rootsift", "vlad"]
 
@@ -58,6 +56,8 @@ def learn_vocabulary(
     if len(d) > max_samples:
         d = d[rng.choice(len(d), max_samples, replace=False)]
     k = int(min(num_words, len(d)))
+    from scipy.cluster.vq import kmeans2  # here: rp_jax.localize imports this module eagerly
+
     centres, _ = kmeans2(d.astype(np.float64), k, minit="++", seed=rng)
     return centres.astype(np.float32)
 
@@ -78,6 +78,8 @@ def vlad(descriptors: np.ndarray, vocabulary: np.ndarray, alpha: float = 0.5) ->
     d = np.asarray(descriptors, dtype=np.float32).reshape(-1, dim)
     v = np.zeros((k, dim), dtype=np.float64)
     if len(d):
+        from scipy.spatial import cKDTree
+
         _, word = cKDTree(centres).query(d)
         np.add.at(v, word, d - centres[word])
     # Intra-normalisation: each cluster's residual sum to unit norm (bursts count once).
