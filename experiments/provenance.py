@@ -3,12 +3,15 @@ finished and on which machine.
 
 Both drivers' ``report.md`` (Sec. IV-A and map summarization) record it, so a figure in a
 report can be traced to the code and the library versions that drew it. ``gather()`` is
-called once per run and stored in ``metrics.json``; ``markdown()`` renders it.
+called once per run and stored in ``metrics.json``; ``markdown()`` renders it. The code is
+the one the run started with: a driver calls ``code()`` when it starts, and a commit made
+while it runs (runs take hours) is not attributed to it.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import os
 import platform
 import shlex
@@ -17,7 +20,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["gather", "machine", "markdown", "PACKAGES"]
+__all__ = ["code", "gather", "machine", "markdown", "PACKAGES"]
 
 # The packages whose versions decide the numbers: (label, distributions to try in order).
 PACKAGES = (
@@ -65,6 +68,18 @@ def machine() -> str:
     return f"{model or platform.processor() or platform.machine()}, {os.cpu_count()} cores"
 
 
+@functools.cache
+def code() -> str:
+    """The code this process runs, as it was the first time this is asked: ``git <commit>``
+    (with ``+ uncommitted changes`` when the checkout has any) or, outside a checkout,
+    ``rp_jax <version>``. A driver asks when its run starts."""
+    commit = _git("rev-parse", "HEAD") if (_CHECKOUT / ".git").exists() else None
+    if commit:
+        dirty = _git("status", "--porcelain", "--untracked-files=no")
+        return f"git {commit}" + (" + uncommitted changes" if dirty else "")
+    return f"rp_jax {_version(('rp_jax', 'rp-jax')) or 'unknown version'}"
+
+
 def gather(argv: list[str] | None = None) -> dict:
     """The run's provenance.
 
@@ -74,22 +89,14 @@ def gather(argv: list[str] | None = None) -> dict:
 
     Returns:
       ``{"command", "code", "date", "machine", "python", "packages"}``: ``date`` is now in
-      UTC (a run gathers it when it finishes), ``machine`` the CPU; ``code`` is
-      ``git <commit>`` (with
-      ``+ uncommitted changes`` when the checkout has any) or, outside a checkout,
-      ``rp_jax <version>``; ``packages`` maps each of ``PACKAGES`` to its version or None.
+      UTC (a run gathers it when it finishes), ``machine`` the CPU; ``code`` is ``code()``;
+      ``packages`` maps each of ``PACKAGES`` to its version or None.
     """
     argv = list(getattr(sys, "orig_argv", sys.argv) if argv is None else argv)
     command = shlex.join(["python", *argv[1:]]) if argv else ""
-    commit = _git("rev-parse", "HEAD") if (_CHECKOUT / ".git").exists() else None
-    if commit:
-        dirty = _git("status", "--porcelain", "--untracked-files=no")
-        code = f"git {commit}" + (" + uncommitted changes" if dirty else "")
-    else:
-        code = f"rp_jax {_version(('rp_jax', 'rp-jax')) or 'unknown version'}"
     return {
         "command": command,
-        "code": code,
+        "code": code(),
         "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "machine": machine(),
         "python": platform.python_version(),

@@ -92,6 +92,7 @@ def run(
     from experiments.map_summarization.config import validate
 
     validate(config, workdir)  # before the predictor is trained: a bad field fails at once
+    provenance.code()  # the code this run starts with, whatever is committed while it runs
     m = config.map
     names = methods_of(config)
     workdir = Path(workdir).absolute()

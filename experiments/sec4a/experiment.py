@@ -139,6 +139,7 @@ def run(
     from rp_jax import plots, predict, train
 
     validate(config, workdir)  # before the dataset is built: a bad field fails in a second
+    provenance.code()  # the code this run starts with, whatever is committed while it runs
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     schedule = schedule_lib.preset(config.input.schedule)
