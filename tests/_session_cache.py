@@ -41,8 +41,6 @@ __all__ = ["cache_root", "configure_jax_cache", "cpu_tag", "jax_cache_environmen
            "session_folder", "shared_base"]
 
 CACHE_ENV = "RP_JAX_TEST_CACHE"
-# What tests/conftest.py adds to XLA_FLAGS (its docstring says why).
-XLA_NO_OPTIMIZATION = "--xla_backend_optimization_level=0"
 _OFF = ("", "0", "off", "no", "false")
 _DONE = ".complete"  # written last: a folder without it is half-built (a failed build)
 
