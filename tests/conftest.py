@@ -10,8 +10,9 @@ XLA compiles the suite's programs without its backend optimizations
 (``--xla_backend_optimization_level=0``): the tests' programs are small and run for a few
 steps, so compiling them is most of their time. On ``tests/test_train.py`` and
 ``tests/test_predict.py`` with the cache off: 128.6 s of CPU with them, 93.2 s without, the
-same 72 passed; the whole suite passes with and without them (docs/testing.md). ``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do;
-the commands the tests start inherit the setting.
+same 72 passed; the whole suite passes with and without them (docs/testing.md).
+``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do; the commands the tests start
+inherit the setting.
 """
 
 import os
