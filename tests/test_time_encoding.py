@@ -50,3 +50,21 @@ def test_jittable_and_validates():
         te.num_features("minute_of_week")
     with pytest.raises(ValueError, match="unknown time encoding"):
         te.encode(1, 2, 3, 4, encoding="fourier")
+
+
+@pytest.mark.parametrize("fields", ["time_of_day", "day_of_year", "hour_of_year"])
+@pytest.mark.parametrize("encoding", ["raw", "cyclic"])
+def test_numpy_fields_are_encoded_in_numpy_as_jax_encodes_them(fields, encoding, caplog):
+    """Times a user asks about (NumPy fields) compile nothing and equal the training step's
+    encoding (JAX, under jit) to float32 rounding."""
+    rng = np.random.default_rng(0)
+    n = 997  # a size no other test encodes, so a JAX path would have to compile
+    fields_ = [rng.integers(0, 24, n), rng.integers(0, 60, n), rng.integers(1, 32, n),
+               rng.integers(1, 13, n)]
+    with caplog.at_level("WARNING"), jax.log_compiles(True):
+        out = te.encode(*fields_, fields=fields, encoding=encoding)
+    assert not [r for r in caplog.records if "Compiling" in r.getMessage()]
+    assert isinstance(out, np.ndarray) and out.dtype == np.float32
+    traced = jax.jit(lambda *f: te.encode(*f, fields=fields, encoding=encoding))(*fields_)
+    assert isinstance(traced, jax.Array)
+    np.testing.assert_allclose(out, np.asarray(traced), atol=2e-6)
