@@ -125,11 +125,16 @@ def _zeros_moment(shape, with_year: bool = False) -> dict:
 
 
 def init_params(net: ConditionalPredictor, rng) -> dict:
-    """Initial ``params`` (shapes only under ``jax.eval_shape``)."""
+    """Initial ``params`` (shapes only under ``jax.eval_shape``), compiled as one program
+    (as ``rp_jax.model.init_params``: op by op, every layer's operations compile one by one)."""
     year = bool(net.decay_time_scales)
-    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
-                    _zeros_moment((1,), year), _zeros_moment((1, 1), year),
-                    jnp.zeros((1,), jnp.int32))["params"]
+
+    def init(rng):
+        return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
+                        _zeros_moment((1,), year), _zeros_moment((1, 1), year),
+                        jnp.zeros((1,), jnp.int32))["params"]
+
+    return jax.jit(init)(rng)
 
 
 def pair_loss(logits, outcome, example_mask=None) -> jnp.ndarray:
