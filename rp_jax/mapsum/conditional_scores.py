@@ -84,6 +84,26 @@ def mean_over_observations(obs_scores: np.ndarray, obs_point: np.ndarray,
         return np.where(count > 0, total / count, np.nan)
 
 
+def _bucket(rows: int, limit: int) -> int:
+    """The rows a batch of ``rows`` is padded to: the next power of two, at most ``limit``.
+
+    A jitted function compiles once per input shape: unpadded, encoding each map image's
+    observations compiled one program per image (another count each); padded, there are at
+    most log2(limit) + 1 shapes, whatever the counts.
+    """
+    return min(limit, 1 << max(rows - 1, 0).bit_length())
+
+
+def _pad(a, size: int, axis: int = 0) -> np.ndarray:
+    """``a`` with its last entry along ``axis`` repeated up to ``size`` entries."""
+    a = np.asarray(a)
+    missing = size - a.shape[axis]
+    if missing <= 0:
+        return a
+    last = np.take(a, [a.shape[axis] - 1], axis=axis)
+    return np.concatenate([a, np.repeat(last, missing, axis=axis)], axis=axis)
+
+
 @functools.lru_cache(maxsize=4)
 def _compiled(net):
     import jax
@@ -135,10 +155,12 @@ class ConditionalScorer:
         out = []
         for s in range(0, n, self.batch_size):
             e = min(s + self.batch_size, n)
-            out.append(np.asarray(encode(self.params, np.asarray(patches[s:e]),
-                                         np.asarray(xy_normalized[s:e], np.float32),
-                                         {k: v[s:e] for k, v in capture.items()},
-                                         category[s:e])))
+            size = _bucket(e - s, self.batch_size)
+            out.append(np.asarray(encode(
+                self.params, _pad(patches[s:e], size),
+                _pad(np.asarray(xy_normalized[s:e], np.float32), size),
+                {k: _pad(v[s:e], size) for k, v in capture.items()},
+                _pad(category[s:e], size)))[: e - s])
         width = int(self.net.hidden)
         return np.concatenate(out) if out else np.zeros((0, width), np.float32)
 
@@ -152,9 +174,11 @@ class ConditionalScorer:
         out = np.zeros(n, np.float64)
         for s in range(0, n, self.batch_size):
             e = min(s + self.batch_size, n)
-            tgt = {k: np.broadcast_to(v[None, :], (e - s, 1)) for k, v in target.items()}
-            out[s:e] = np.asarray(score(self.params, codes[s:e],
-                                        {k: v[s:e] for k, v in capture.items()}, tgt))[:, 0]
+            size = _bucket(e - s, self.batch_size)
+            tgt = {k: np.broadcast_to(v[None, :], (size, 1)) for k, v in target.items()}
+            out[s:e] = np.asarray(score(self.params, _pad(codes[s:e], size),
+                                        {k: _pad(v[s:e], size) for k, v in capture.items()},
+                                        tgt))[: e - s, 0]
         return out
 
     def probabilities_at(self, codes: np.ndarray, capture: dict, targets: dict,
@@ -166,13 +190,15 @@ class ConditionalScorer:
         out = np.zeros((n, K), np.float64)
         for a in range(0, K, chunk):
             b = min(a + chunk, K)
+            width = _bucket(b - a, chunk)
             for s in range(0, n, self.batch_size):
                 e = min(s + self.batch_size, n)
-                tgt = {k: np.broadcast_to(np.asarray(v)[None, a:b], (e - s, b - a))
+                size = _bucket(e - s, self.batch_size)
+                tgt = {k: np.broadcast_to(_pad(np.asarray(v)[a:b], width)[None], (size, width))
                        for k, v in targets.items()}
-                out[s:e, a:b] = np.asarray(score(self.params, codes[s:e],
-                                                 {k: v[s:e] for k, v in capture.items()},
-                                                 tgt))
+                out[s:e, a:b] = np.asarray(score(
+                    self.params, _pad(codes[s:e], size),
+                    {k: _pad(v[s:e], size) for k, v in capture.items()}, tgt))[: e - s, : b - a]
         return out
 
     def point_scores(self, codes: np.ndarray, capture: dict, obs_point: np.ndarray,

@@ -123,3 +123,31 @@ def test_each_query_its_own_look_many_targets_at_once(tmp_path):
         single = {key: v[k:k + 1] for key, v in targets.items()}
         np.testing.assert_allclose(scorer.probabilities_at(codes, capture, single)[:, 0],
                                    many[:, k], rtol=1e-5)
+
+
+def test_batches_are_padded_to_few_shapes_and_the_padding_never_shows(scorer_and_obs, caplog):
+    """Images with 5, 6 and 7 observations share one compiled program (padded to 8), and
+    what comes out equals the model on the rows alone, in every batch and target chunk."""
+    scorer, patches, xy, capture, _ = scorer_and_obs
+    wide = ConditionalScorer(scorer.net, scorer.params, place=PITTSBURGH, batch_size=8)
+    rng = np.random.default_rng(3)
+    when = dt.datetime(2010, 9, 1, 15, 30, tzinfo=TZ)
+    with caplog.at_level("WARNING"), jax.log_compiles(True):
+        for n in (5, 6, 7):
+            p = rng.integers(0, 256, (n, 64, 64, 3), dtype=np.uint8)
+            q = rng.uniform(size=(n, 2)).astype(np.float32)
+            c = wide.moments([when] * n)
+            codes = wide.encode(p, q, c)
+            assert codes.shape == (n, int(scorer.net.hidden))
+            np.testing.assert_allclose(wide.probabilities(codes, c, when),
+                                       _direct(scorer, p, q, c, when), rtol=1e-5, atol=1e-6)
+    compiled = [r.getMessage() for r in caplog.records
+                if r.getMessage().startswith("Compiling jit(encode)")]
+    assert len(compiled) <= 1, compiled
+    # Many targets in chunks of 2 (the last one padded): each column as one target alone.
+    targets = wide.moments([dt.datetime(2010, 9, 1, h, 0, tzinfo=TZ) for h in (8, 12, 17)])
+    many = wide.probabilities_at(codes, c, targets, chunk=2)
+    for k in range(3):
+        single = {key: v[k:k + 1] for key, v in targets.items()}
+        np.testing.assert_allclose(many[:, k], wide.probabilities_at(codes, c, single)[:, 0],
+                                   rtol=1e-5)
