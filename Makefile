@@ -46,6 +46,13 @@ demo: $(INSTALLED)
 # suite (JAX compiles, OpenCV and Python are mostly one thread): 15-17 min on 2 cores
 # against 11 min 54 s to 13 min 48 s in two workers (three clean clones, 2026-12-02; README
 # "Two commands").
+# The suite writes Python's bytecode (__pycache__ beside each module, in .venv and in the
+# checkout, ignored by git) even where PYTHONDONTWRITEBYTECODE is set, as some machines here
+# set it: its xdist workers, notebook kernels and the commands it starts would otherwise each
+# compile JAX, TensorFlow and the project from source again (importing the training stack:
+# 5.0 s of CPU from source, 2.6 s from bytecode, 2-core AMD EPYC). Only what is imported is
+# compiled, once; compiling every installed package at install (uv's --compile-bytecode)
+# cost 19 s of CPU more.
 # TEST_CACHE keeps what one run computes for the next: JAX's compiled programs, one folder
 # per CPU kind (docs/testing.md has what it saves, cold and warm). `make clean` empties it;
 # `make test TEST_CACHE=off` runs without it.
@@ -53,6 +60,7 @@ PYTEST_WORKERS ?= 2
 TEST_CACHE ?= .cache/tests
 test: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
+	PYTHONDONTWRITEBYTECODE= \
 	RP_JAX_TEST_CACHE=$(if $(filter off,$(TEST_CACHE)),off,$(abspath $(TEST_CACHE))) \
 		$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile
 
@@ -87,3 +95,4 @@ bench: $(INSTALLED)
 
 clean:
 	rm -rf $(VENV) $(BEAM_VENV) runs .pytest_cache .cache
+	find rp_jax experiments tests notebooks -name __pycache__ -type d -prune -exec rm -rf {} +

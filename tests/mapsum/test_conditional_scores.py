@@ -53,8 +53,10 @@ def _direct(scorer, patches, xy, capture, when):
     """The model on each observation at ``when``, without the scorer's batching or codes."""
     target = {k: jnp.asarray(v)[None, :].repeat(len(patches), 0)
               for k, v in moment_at([when], place=PITTSBURGH).items()}
-    logits = scorer.net.apply({"params": scorer.params}, preprocess_patches(patches), xy,
-                              capture, target, np.full(len(patches), -1, np.int32))
+    # Compiled whole (op by op, every operation of the network compiles for each new count).
+    apply = jax.jit(lambda params, *a: scorer.net.apply({"params": params}, *a))
+    logits = apply(scorer.params, preprocess_patches(patches), xy, capture, target,
+                   np.full(len(patches), -1, np.int32))
     return np.asarray(jax.nn.sigmoid(logits))[:, 0]
 
 
