@@ -52,7 +52,7 @@ demo: $(INSTALLED)
 # compile JAX, TensorFlow and the project from source again (importing the training stack:
 # 5.0 s of CPU from source, 2.6 s from bytecode, 2-core AMD EPYC). Only what is imported is
 # compiled, once; compiling every installed package at install (uv's --compile-bytecode)
-# cost 19 s of CPU more.
+# made the install take 21 s of CPU instead of 2.
 # TEST_CACHE keeps what one run computes for the next: JAX's compiled programs, one folder
 # per CPU kind (docs/testing.md has what it saves, cold and warm). `make clean` empties it;
 # `make test TEST_CACHE=off` runs without it.
