@@ -12,7 +12,9 @@ dates, with the reference traversal's COLMAP model) and ``plan_robotcar`` (``rob
 9 traversals of Table I, raw Bayer frames near 23 viewpoints, ``ins.csv`` at 10 Hz); beyond
 the paper, ``webcam_years`` (``plan_webcam.plan_years``: the webcams on the same days of
 six years, the world's slow changes on, ``slow_changes``) and ``webcam_years_frozen`` (the
-same frames without them), for the long-term decay of issue 17. They
+same frames without them), for the long-term decay of issue 17, and ``robotcar_seasons``
+(``plan_robotcar_seasons``: RobotCar Seasons' overcast reference traversal and its nine
+query conditions, three cameras, in the release's layout). They
 share the frame jobs and their rendering (``frame_jobs``). This module names the presets
 and renders one (``plan``, ``generate``); the presets' public names stay importable from it.
 
@@ -31,7 +33,13 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from rp_jax.sources.synthetic import plan_cmu, plan_robotcar, plan_webcam, write_layout
+from rp_jax.sources.synthetic import (
+    plan_cmu,
+    plan_robotcar,
+    plan_robotcar_seasons,
+    plan_webcam,
+    write_layout,
+)
 from rp_jax.sources.synthetic.frame_jobs import (
     EVALUATION_DIR,
     SYNTHETIC_DIR,
@@ -90,6 +98,7 @@ PRESET_NAMES = (
     "robotcar",
     "webcam_years",
     "webcam_years_frozen",
+    "robotcar_seasons",
 )
 # Bumped whenever the same (preset, size, seed) renders different pixels or file names; a
 # layout rendered by another version is rendered again
@@ -137,6 +146,8 @@ _PLANNERS = {
     # Beyond the paper: the Webcam layout over six years, with and without slow changes.
     "webcam_years": plan_webcam.plan_years,
     "webcam_years_frozen": functools.partial(plan_webcam.plan_years, slow_changes=False),
+    # Beyond the paper: RobotCar Seasons' reference and nine conditions (dawn to snow).
+    "robotcar_seasons": plan_robotcar_seasons.plan,
 }
 
 
