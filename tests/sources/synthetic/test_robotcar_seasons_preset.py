@@ -2,6 +2,7 @@
 formats (hloc's query lists, the NVM model, the v2 pose files, a COLMAP model)."""
 
 import datetime as dt
+import json
 
 import cv2
 import numpy as np
@@ -10,8 +11,8 @@ import pytest
 
 from rp_jax import sun
 from rp_jax.sources import robotcar_seasons as rcs
+from rp_jax.sources.synthetic import condition_sheet, presets
 from rp_jax.sources.synthetic import plan_robotcar_seasons as plan_rcs
-from rp_jax.sources.synthetic import presets
 from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
 
 CONDITIONS = {"overcast-reference", "dusk", "night", "rain"}  # the tiny size's
@@ -126,3 +127,29 @@ def test_conditions_name_the_weather_they_force_and_every_condition_is_planned()
     assert plan_rcs.CONDITION_WEATHER["snow"] is None  # the world's winter decides, not fiat
     small = presets.plan("robotcar_seasons", "/tmp/unused", size="small")
     assert {j.image_path.parts[-3] for j in small.jobs} == set(rcs.CONDITIONS)
+
+
+def test_light_at_keypoints_is_one_for_uniform_texture_and_high_on_a_lit_patch():
+    rng = np.random.default_rng(0)
+    texture = rng.integers(0, 256, (128, 128), dtype=np.uint8)
+    even = condition_sheet.measure_image(texture)
+    assert even["keypoints"] > 20 and 0.8 < even["light_at_keypoints"] < 1.25
+    dark = np.full((128, 128), 5, np.uint8)
+    dark[40:80, 40:80] = np.clip(texture[40:80, 40:80], 150, 255)  # one lit, textured patch
+    lit = condition_sheet.measure_image(dark)
+    assert lit["keypoints"] > 0 and lit["light_at_keypoints"] > 3
+    none = condition_sheet.measure_image(np.zeros((64, 64), np.uint8))
+    assert none["keypoints"] == 0 and np.isnan(none["light_at_keypoints"])
+
+
+def test_condition_sheet_finds_fewer_keypoints_at_night_where_the_light_is(layout, tmp_path):
+    assert condition_sheet.main([str(layout), str(tmp_path / "out")]) == 0
+    stats = json.loads((tmp_path / "out" / "conditions.json").read_text())
+    assert set(stats) == CONDITIONS
+    sheet = cv2.imread(str(tmp_path / "out" / "conditions.jpg"))
+    assert sheet is not None and sheet.shape[0] > 4 * 128 and sheet.shape[1] > 3 * 128
+    day, night = stats[rcs.REFERENCE_CONDITION], stats["night"]
+    assert night["keypoints_median"] < 0.7 * day["keypoints_median"]
+    assert night["light_at_keypoints_median"] > 1.5 * day["light_at_keypoints_median"]
+    with pytest.raises(SystemExit):
+        condition_sheet.main([str(tmp_path / "nothing"), str(tmp_path / "o")])
