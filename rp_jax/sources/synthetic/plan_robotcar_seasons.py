@@ -5,10 +5,11 @@ Changing Conditions", CVPR 2018) takes one overcast daytime traversal of Oxford 
 the reference map and queries from nine other traversals: dawn, dusk, night, night-rain,
 overcast-summer, overcast-winter, rain, snow and sun, each imaged by the car's three
 Grasshopper2 cameras (left, rear, right; 1024x1024 after undistortion). This preset drives
-the same synthetic street as the ``robotcar`` preset once per condition, starting at the
-real traversal's instant (``robotcar_seasons.TRAVERSALS``, UTC) so that the sun, the
-twilight and the street lamps are those of that instant in Oxford, and writes the real
-layout, read by ``rp_jax.sources.robotcar_seasons``::
+one synthetic street in Oxford (a street of the ``robotcar`` preset's kind, its own seed)
+once per condition, starting at the real traversal's instant
+(``robotcar_seasons.TRAVERSALS``, UTC) so that the sun, the twilight and the street lamps
+are those of that instant in Oxford, and writes the real layout, read by
+``rp_jax.sources.robotcar_seasons``::
 
     <out>/images/<condition>/<left|rear|right>/<unix us>.jpg
     <out>/intrinsics/<camera>_intrinsics.txt            fx fy cx cy (COLMAP's pixel centres)
