@@ -43,11 +43,13 @@ def _parser() -> argparse.ArgumentParser:
                    "X Y Z' lines (world-to-camera rotation) in the convention it states: a '# "
                    "name qw qx qy qz tx ty tz' or '... cx cy cz' header, or an Extended CMU "
                    "Seasons ground-truth name (ground-truth-*-images-slice*.txt, camera-poses/"
-                   "*.txt: camera centres); else give --ground-truth-format")
+                   "*.txt: camera centres); or RobotCar Seasons' robotcar_v2_*.txt (a name and "
+                   "a row-major camera-to-world matrix); else give --ground-truth-format")
     p.add_argument("--ground-truth-format", choices=tuple(pose_files.FORMATS),
-                   help="what the last three numbers of a --ground-truth line are: submission, "
-                   "the translation t (visuallocalization.net); camera-centre, the camera "
-                   "centre C (Extended CMU Seasons ground truth, t = -R C)")
+                   help="what a --ground-truth line holds: submission, a quaternion and the "
+                   "translation t (visuallocalization.net); camera-centre, a quaternion and the "
+                   "camera centre C (Extended CMU Seasons ground truth, t = -R C); "
+                   "camera-to-world, the row-major camera-to-world matrix (RobotCar Seasons v2)")
     p.add_argument("--intrinsics", metavar="FILE",
                    help="query cameras: hloc's queries_with_intrinsics.txt lines 'name MODEL W "
                    "H params...' (COLMAP models), or the dataset's intrinsics.txt of 'c0 OPENCV "

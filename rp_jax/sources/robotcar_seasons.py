@@ -354,7 +354,7 @@ def read_v2_poses(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out = {}
     for line_no, line in enumerate(path.read_text().splitlines(), start=1):
         tokens = line.split()
-        if not tokens:
+        if not tokens or tokens[0].startswith("#"):  # a comment (rp_jax writes a header)
             continue
         try:
             m = np.array([float(v) for v in tokens[1:]])
@@ -368,9 +368,11 @@ def read_v2_poses(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def write_v2_poses(path: Path, poses: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> Path:
-    """Writes ``name`` and the camera-to-world 4x4 (row-major) of world-to-camera poses."""
-    lines = []
+def write_v2_poses(path: Path, poses: Mapping[str, tuple[np.ndarray, np.ndarray]],
+                   header: str | None = None) -> Path:
+    """Writes ``name`` and the camera-to-world 4x4 (row-major) of world-to-camera poses,
+    after a ``# header`` comment line if one is given (the release's files have none)."""
+    lines = [f"# {header}"] if header else []
     for name in sorted(poses):
         R, t = (np.asarray(a, np.float64) for a in poses[name])
         T = np.eye(4)

@@ -216,6 +216,12 @@ def test_pose_conventions_give_the_same_accuracy(scene, tmp_path, capsys):
         results[name] = _accuracy(tmp_path / name)
     assert results["submission"] == {"0.25m_2deg": 100.0, "0.5m_5deg": 100.0, "5m_10deg": 100.0}
     assert results["centre"] == results["submission"]  # was 0 % at every threshold
+    # RobotCar Seasons' v2 file (camera-to-world matrices, no header): proven by its name.
+    from rp_jax.sources.robotcar_seasons import write_v2_poses
+
+    v2 = write_v2_poses(tmp_path / "robotcar_v2_train.txt", scene.query_poses)
+    assert _localize(*common, "--ground-truth", v2, "--out", tmp_path / "v2") == 0
+    assert _accuracy(tmp_path / "v2") == results["submission"]
     assert _localize(*common, "--ground-truth", plain, "--ground-truth-format", "camera-centre",
                      "--out", tmp_path / "flag") == 0
     assert _accuracy(tmp_path / "flag") == results["submission"]
@@ -224,7 +230,7 @@ def test_pose_conventions_give_the_same_accuracy(scene, tmp_path, capsys):
     assert _localize(*common, "--ground-truth", plain, "--out", tmp_path / "o") == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "poses.txt" in err and "--ground-truth-format" in err
-    assert "tx ty tz" in err and "cx cy cz" in err
+    assert "tx ty tz" in err and "cx cy cz" in err and "camera-to-world" in err
     # A choice the file contradicts: refused too.
     assert _localize(*common, "--ground-truth", cmu, "--ground-truth-format", "submission",
                      "--out", tmp_path / "o") == 2
