@@ -359,9 +359,10 @@ def main(argv, name: str, get_config, doc: str) -> int:
 
 def _cross_validate(config, workdir: Path, folds: int) -> int:
     """Leave-viewpoints-out over the training split; prints the summary table."""
-    from experiments.sec4a import crossval, experiment
+    from experiments import records
+    from experiments.sec4a import crossval
 
-    data = experiment.build_dataset(config, workdir)
+    data = records.build_dataset(config, workdir)
     result = crossval.cross_validate(config, workdir, data["train"], num_folds=folds)
     print(crossval.markdown(result))
     print(f"wrote {workdir}/crossval.json and crossval.md")

@@ -29,6 +29,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
+from experiments import records, run_files
 from experiments.conditional import config as config_lib
 from experiments.sec4a import crossval as paper_crossval
 from experiments.sec4a import experiment
@@ -88,7 +89,7 @@ def load_pairs(config: ml_collections.ConfigDict, workdir: Path, split: str = "t
     from rp_jax.conditional import pairs
     from rp_jax.datasets import loading, outcomes
 
-    columns = experiment.build_dataset(config, workdir)[split]
+    columns = records.build_dataset(config, workdir)[split]
     i = config.input
     data_dir = i.data_dir or None
     columns["keypoint_id"] = loading.load_columns(
@@ -208,8 +209,8 @@ def _paper_per_scene(config, fold_dir: Path, columns: dict, held: np.ndarray,
 
     from rp_jax import predict
 
-    held_cols = experiment.subset(columns, held)
-    train_cols = experiment.subset(columns, ~held)
+    held_cols = records.subset(columns, held)
+    train_cols = records.subset(columns, ~held)
     label, mask = held_cols["label"], held_cols["label_mask"].astype(bool)
     rp = predict.load(fold_dir)
     preds = {"paper": np.asarray(experiment.rp_predictions(rp, config_lib.paper_config(config),
@@ -245,7 +246,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path,
     asked = json.loads(json.dumps(config.to_dict(), default=list))
     done: dict = {}
     if path.exists():
-        old = experiment.read_json(path)
+        old = run_files.read_json(path)
         if configs_default.upgrade(old.get("config") or {}) != asked:
             raise ValueError(f"{path} holds a run with another config; use a new --workdir "
                              "or delete it")
@@ -276,7 +277,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path,
                 per_scene[key] = _saved_variant_per_scene(config, conditions, held_arrays, T,
                                                           workdir / name / key)
             folds[name] = entry
-            experiment.write_json(path, {"folds": {**done, **folds}, "config": asked})
+            run_files.write_json(path, {"folds": {**done, **folds}, "config": asked})
         folds[name] = entry
     result = {"folds": folds, "summary": summarize(folds, variants), "config": asked}
     from experiments.conditional import figures
@@ -285,7 +286,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path,
     held = pairs.subset(arrays, np.isin(viewpoints, folds[first]["held_out"]))
     result["figures"] = [figures.year_of_one_point(
         config, workdir / first, variants, held, sidecar, workdir / "year_one_point.png").name]
-    experiment.write_json(path, result)
+    run_files.write_json(path, result)
     files.write_text(workdir / "conditional.md", markdown(result))
     return result
 

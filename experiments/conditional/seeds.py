@@ -177,13 +177,13 @@ def markdown(combined: dict) -> str:
 
 def write(workdirs: list[str | Path], out: str | Path) -> dict:
     """Combine the runs of ``workdirs`` into ``out/conditional_seeds.{json,md}``."""
-    from experiments.sec4a import experiment
+    from experiments import run_files
     from rp_jax import files
 
     combined = combine(load(workdirs))
     combined["workdirs"] = [str(w) for w in workdirs]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    experiment.write_json(out / "conditional_seeds.json", combined)
+    run_files.write_json(out / "conditional_seeds.json", combined)
     files.write_text(out / "conditional_seeds.md", markdown(combined))
     return combined

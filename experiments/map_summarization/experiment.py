@@ -37,7 +37,7 @@ import jax
 import ml_collections
 import numpy as np
 
-from experiments import provenance
+from experiments import provenance, run_files
 from experiments.map_summarization import methods, report
 from experiments.map_summarization.methods import RP_RECIPES, methods_of, recipe_of
 from experiments.map_summarization.pooling import (
@@ -51,7 +51,6 @@ from experiments.map_summarization.pooling import (
 from experiments.map_summarization.queries import bucket
 from experiments.map_summarization.train import train_predictor
 from experiments.map_summarization.world import RESULT_VERSION, evaluate_world
-from experiments.sec4a import experiment
 from rp_jax import files, plots
 
 __all__ = [
@@ -153,11 +152,11 @@ def run(
         "rp_training": {
             **rp_counts,
             "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
-            "validation": experiment.last_validation(workdir / "rp"),
+            "validation": run_files.last_validation(workdir / "rp"),
         },
         "cmu_rp_training": {
             **training["cmu"],
-            "validation": experiment.last_validation(workdir / f"rp_cmu_without_slice{m.slice}"),
+            "validation": run_files.last_validation(workdir / f"rp_cmu_without_slice{m.slice}"),
         }
         if "cmu" in training
         else None,
@@ -195,7 +194,7 @@ def run(
     rp_runs = {"rp (RobotCar-like)": workdir / "rp"}
     if metrics["cmu_rp_training"] is not None:
         rp_runs[f"rp_cmu (without slice {m.slice})"] = workdir / f"rp_cmu_without_slice{m.slice}"
-    figures += experiment.learning_curve(workdir, rp_runs, title="Training the predictors")
+    figures += run_files.learning_curve(workdir, rp_runs, title="Training the predictors")
     timings["figures_s"] = time.perf_counter() - tic
     metrics["figures"] = [f.name for f in figures]
     metrics["provenance"] = provenance.gather()
@@ -203,7 +202,7 @@ def run(
         **{k: round(v, 2) for k, v in timings.items()},
         "per_seed": {str(s["seed"]): s["timings"] for s in per_seed},
     }
-    experiment.write_json(workdir / "metrics.json", metrics)
+    run_files.write_json(workdir / "metrics.json", metrics)
     text = report.markdown(metrics, config, labels)
     files.write_text(workdir / "report.md", text)
     return metrics

@@ -16,7 +16,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
-from experiments.sec4a import experiment
+from experiments import records
 from rp_jax import predict, train
 from rp_jax import schedule as schedule_lib
 
@@ -42,15 +42,15 @@ def rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
 
 def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
     """Hold out validation viewpoints of ``cols``, train in ``rp_dir`` (resumes), load it."""
-    val_mask = experiment.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
+    val_mask = records.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
                                            cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
     val_cols = {k: v[val_mask] for k, v in cols.items()}
     train.train_and_evaluate(
         cfg,
         rp_dir,
-        experiment.model_source(train_cols),
-        experiment.model_source(val_cols) if val_mask.any() else None,
+        records.model_source(train_cols),
+        records.model_source(val_cols) if val_mask.any() else None,
         schedule=schedule_lib.preset(cfg.input.schedule),
         progress=progress,
     )
@@ -64,7 +64,7 @@ def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
 
 
 def _train_columns(cfg, rp_dir: Path) -> dict:
-    data = experiment.build_dataset(cfg, rp_dir)
+    data = records.build_dataset(cfg, rp_dir)
     cols = data.get("train")
     if cols is None or len(cols["label"]) == 0:
         raise ValueError(f"{cfg.input.dataset}/{cfg.input.data_config}: no training records")

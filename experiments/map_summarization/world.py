@@ -377,7 +377,7 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
     posed flags), ``outcomes``, ``full_map``, ``auc``, ``selecting_auc``, ``coverage``,
     ``kept_points``, the map's counts and timings.
     """
-    from experiments.sec4a import experiment as sec4a
+    from experiments import run_files
 
     done = out_dir / SEED_FILE
     if done.is_file():
@@ -457,5 +457,5 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
         },
         "timings": {k: round(v, 2) for k, v in timings.items()},
     }
-    sec4a.write_json(done, result)
+    run_files.write_json(done, result)
     return result

@@ -21,6 +21,7 @@ from pathlib import Path
 import ml_collections
 import numpy as np
 
+from experiments import records, run_files
 from experiments.sec4a import experiment
 from rp_jax import evaluation, files, predict, train
 from rp_jax import schedule as schedule_lib
@@ -78,15 +79,15 @@ def _score(pred, label, mask) -> dict:
 def _run_fold(config, fold_dir: Path, train_cols: dict, held_cols: dict, schedule,
               progress: bool) -> dict:
     t0 = time.perf_counter()
-    train.train_and_evaluate(config, fold_dir, experiment.model_source(train_cols),
-                             experiment.model_source(held_cols), schedule=schedule,
+    train.train_and_evaluate(config, fold_dir, records.model_source(train_cols),
+                             records.model_source(held_cols), schedule=schedule,
                              progress=progress)
     rp = predict.load(fold_dir)
     label, mask = held_cols["label"], held_cols["label_mask"].astype(bool)
     tr_label = train_cols["label"]
     preds = {"rp": experiment.rp_predictions(rp, config, held_cols),
              **experiment.baseline_predictions(config, train_cols, held_cols)}
-    epochs = [r for r in experiment.read_jsonl(fold_dir / "metrics.jsonl") if "val_mae" in r]
+    epochs = [r for r in run_files.read_jsonl(fold_dir / "metrics.jsonl") if "val_mae" in r]
     return {
         "counts": {"train": int(len(tr_label)), "held_out": int(len(label))},
         "ground_truth_mean": float(label[mask].mean()),
@@ -118,7 +119,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
         replaced by the fold's held-out viewpoints, which are scored every epoch; no
         best-epoch selection, so the held-out points choose nothing).
       workdir: where ``crossval.json``, ``crossval.md`` and one run directory per fold go.
-      train_columns: the training split's columns (``experiment.build_dataset(...)["train"]``).
+      train_columns: the training split's columns (``records.build_dataset(...)["train"]``).
       num_folds: see ``viewpoint_folds``.
       progress: progress bars.
 
@@ -135,7 +136,7 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
     path = workdir / "crossval.json"
     done = {}
     if path.exists():
-        old = experiment.read_json(path)
+        old = run_files.read_json(path)
         asked = json.loads(json.dumps(config.to_dict(), default=list))
         if configs_default.upgrade(old.get("config") or {}) != asked:
             raise ValueError(f"{path} holds a cross-validation with another config; use a new "
@@ -149,13 +150,13 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path, train
             folds[name] = done[name]
             continue
         mask = np.isin(viewpoints, held)
-        result = _run_fold(config, workdir / name, experiment.subset(train_columns, ~mask),
-                           experiment.subset(train_columns, mask), schedule, progress)
+        result = _run_fold(config, workdir / name, records.subset(train_columns, ~mask),
+                           records.subset(train_columns, mask), schedule, progress)
         folds[name] = {"held_out": held, **result}
-        experiment.write_json(path, {"folds": {**done, **folds}, "config": config.to_dict()})
+        run_files.write_json(path, {"folds": {**done, **folds}, "config": config.to_dict()})
     result = {"folds": folds, "summary": summarize(list(folds.values())),
               "config": config.to_dict()}
-    experiment.write_json(path, result)
+    run_files.write_json(path, result)
     files.write_text(workdir / "crossval.md", markdown(result))
     return result
 

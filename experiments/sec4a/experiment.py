@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import time
@@ -23,83 +22,28 @@ import ml_collections
 import numpy as np
 
 from experiments import provenance
+from experiments.records import (
+    EVALUATION_KEYS,
+    build_dataset,
+    model_keys,
+    model_source,
+    split_validation,
+    subset,
+)
+from experiments.run_files import last_validation, learning_curve, read_json, write_json
 from rp_jax import categories, evaluation, files
 from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default as configs_default
 
 __all__ = [
     "run",
-    "EVALUATION_KEYS",
-    "split_validation",
-    "build_dataset",
-    "model_source",
-    "last_validation",
-    "write_json",
-    "read_json",
-    "read_jsonl",
-    "learning_curve",
     "redraw_figures",
     "image_loader",
-    "subset",
+    "rp_predictions",
+    "baseline_predictions",
 ]
 
 log = logging.getLogger(__name__)
-
-# What the experiment reads from each record (beyond the model's keys).
-EVALUATION_KEYS = ("viewpoint", "image_id", "slot", "category", "descriptor", "xy", "image_size")
-
-
-def split_validation(viewpoints: np.ndarray, fraction: float, seed: int) -> np.ndarray:
-    """Boolean mask of records whose viewpoint is held out for validation.
-
-    At least one viewpoint is held out when there are two or more; the choice is a
-    deterministic function of the sorted viewpoint ids and the seed.
-    """
-    unique = np.array(sorted(set(viewpoints.tolist())))
-    if len(unique) < 2 or fraction <= 0:
-        return np.zeros(len(viewpoints), bool)
-    n_val = max(1, int(round(fraction * len(unique))))
-    held = np.random.default_rng(seed).choice(unique, n_val, replace=False)
-    return np.isin(viewpoints, held)
-
-
-def build_dataset(config, workdir: Path) -> dict:
-    from rp_jax.datasets import loading
-
-    kwargs = {}
-    if config.input.get("synthetic_root"):
-        kwargs["synthetic_root"] = config.input.synthetic_root
-    builder = loading.get_builder(
-        config.input.dataset, config=config.input.data_config,
-        data_dir=config.input.data_dir or None, **kwargs
-    )
-    from rp_jax.datasets import provenance
-
-    # Builds unless built; a real dataset built from another download is refused.
-    provenance.prepare(builder, config.input.manual_dir or None)
-    keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
-    return {
-        split: loading.load_columns(
-            config.input.dataset,
-            split,
-            keys=keys,
-            config=config.input.data_config,
-            data_dir=config.input.data_dir or None,
-        )
-        for split in builder.info.splits
-    }
-
-
-def _model_keys() -> tuple[str, ...]:
-    from rp_jax.datasets.input_pipeline import MODEL_KEYS
-
-    return tuple(MODEL_KEYS)
-
-
-def subset(columns: dict, mask: np.ndarray) -> dict:
-    """The rows of every column where ``mask`` is true."""
-    return {k: v[mask] for k, v in columns.items()}
-
 
 def rp_predictions(rp, config, columns: dict) -> np.ndarray:
     """[N, T] predictions of the trained predictor ``rp`` for the records ``columns``."""
@@ -123,12 +67,6 @@ def baseline_predictions(config, train_cols: dict, columns: dict) -> dict[str, n
             train_cols["descriptor"], tr_label, tr_mask, columns["descriptor"], k=config.eval.knn_k
         ),
     }
-
-
-def model_source(columns: dict):
-    from rp_jax.datasets.input_pipeline import ArraySource
-
-    return ArraySource({k: columns[k] for k in _model_keys()}, _model_keys())
 
 
 def run(
@@ -268,7 +206,7 @@ def redraw_figures(workdir: str | os.PathLike) -> list[Path]:
         configs_default.upgrade(read_json(workdir / "config.json")))
     metrics = read_json(workdir / "metrics.json")
     schedule = schedule_lib.preset(config.input.schedule)
-    keys = tuple(dict.fromkeys(_model_keys() + EVALUATION_KEYS))
+    keys = tuple(dict.fromkeys(model_keys() + EVALUATION_KEYS))
     test = loading.load_columns(config.input.dataset, "test", keys=keys,
                                 config=config.input.data_config,
                                 data_dir=config.input.data_dir or None)
@@ -322,67 +260,6 @@ def image_loader(config):
         return None if capture is None else dataset.load_image(capture)
 
     return load
-
-
-def learning_curve(workdir: Path, runs: dict[str, Path], *, title: str) -> list[Path]:
-    """``learning_curve.png`` in ``workdir``: train loss and validation MAE per epoch of each
-    training run in ``runs`` (name -> its workdir, read from its ``metrics.jsonl``); [] when
-    no run has an epoch record."""
-    from rp_jax import plots
-
-    records = {name: read_jsonl(Path(d) / "metrics.jsonl") for name, d in runs.items()}
-    records = {name: recs for name, recs in records.items() if any("epoch" in r for r in recs)}
-    if not records:
-        return []
-    return [plots.plot_learning_curve(records, Path(workdir) / "learning_curve.png",
-                                      title=title)]
-
-
-def read_json(path: Path):
-    """A JSON file, with an error naming the file if it is not JSON (e.g. cut short)."""
-    try:
-        return json.loads(Path(path).read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path} is not valid JSON ({e}); delete it to start over") from e
-
-
-def read_jsonl(path: Path) -> list[dict]:
-    """The records of a JSON-lines file (``metrics.jsonl``); [] if it does not exist."""
-    path = Path(path)
-    if not path.exists():
-        return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def last_validation(workdir: Path) -> dict | None:
-    path = workdir / "metrics.jsonl"
-    if not path.exists():
-        return None
-    lines = read_jsonl(path)
-    val = [rec for rec in lines if "val_mse" in rec]
-    return (
-        {"val_mse": val[-1]["val_mse"], "val_mae": val[-1]["val_mae"], "epoch": val[-1]["epoch"]}
-        if val
-        else None
-    )
-
-
-def _finite(obj):
-    """NaN/inf -> None, recursively, so metrics.json is strict JSON."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
-def write_json(path: Path, payload) -> None:
-    """``payload`` as strict JSON (NaN/inf as null, NumPy scalars as numbers), atomically."""
-    files.write_json(path, _finite(payload), allow_nan=False)
 
 
 def report_markdown(metrics: dict, config) -> str:

@@ -184,7 +184,7 @@ def test_cli_reads_a_field_named_before_the_grouping_with_a_warning(capsys):
 
 
 def test_split_validation_holds_out_whole_viewpoints():
-    from experiments.sec4a.experiment import split_validation
+    from experiments.records import split_validation
 
     vps = np.array(["a", "a", "b", "c", "c", "d"])
     mask = split_validation(vps, 0.25, seed=0)
