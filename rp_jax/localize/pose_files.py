@@ -41,7 +41,6 @@ import numpy as np
 from rp_jax import files
 from rp_jax.localize.evaluate import camera_center
 from rp_jax.rotations import quaternion_to_rotation, rotation_to_quaternion
-from rp_jax.sources import robotcar_seasons
 from rp_jax.sources.cmu_seasons import pose_from_ground_truth
 from rp_jax.sources.layout import LayoutError
 
@@ -149,6 +148,10 @@ def read_pose_file(
         raise FileNotFoundError(f"{path}: no such pose file")
     convention = _convention(path, pose_format, flag)
     if convention == CAMERA_TO_WORLD:
+        # Imported here: the reader's module brings pycolmap and SciPy, which the commands'
+        # --help (which lists these conventions) must not import (tests/test_imports.py).
+        from rp_jax.sources import robotcar_seasons
+
         return robotcar_seasons.read_v2_poses(path)
     out = {}
     for line_no, line in enumerate(path.read_text().splitlines(), start=1):
@@ -185,6 +188,8 @@ def write_pose_file(
     if pose_format not in FORMATS:
         raise ValueError(f"unknown pose file format {pose_format!r}")
     if pose_format == CAMERA_TO_WORLD:
+        from rp_jax.sources import robotcar_seasons  # as in read_pose_file
+
         return robotcar_seasons.write_v2_poses(
             path, poses, header=f"{FORMATS[pose_format]}  ({CAMERA_TO_WORLD}: [R^T | C])")
     lines = [f"# {FORMATS[pose_format]}  ({WHAT[pose_format]}; world-to-camera R)"]
