@@ -140,17 +140,22 @@ def test_resume_redoes_only_missing_work(tmp_path):
     # Without patches, an image is loaded only to detect its interest points.
     kw = {"num_timestamps": T, "config": STATIC, "cache_dir": cache, "with_patches": False}
 
+    first = _Loader(fail_after=3)
     with pytest.raises(RuntimeError, match="interrupted"):
-        label_viewpoint(caps, load_image=_Loader(fail_after=3), **kw)
-    assert len(list(cache.glob("features/*/*/*.npz"))) == 3
+        label_viewpoint(caps, load_image=first, **kw)
+    # Images are detected on threads, so which three were loaded before the interruption
+    # depends on the scheduling (under load it is not always the first three).
+    assert len(first.calls) >= 3
+    assert len(list(cache.glob("features/*/*/*.npz"))) == len(set(first.calls) - {"c1s1b"})
     assert not list(cache.glob("labels/*/*.npz"))
 
     resumed = _Loader()
     records = label_viewpoint(caps, load_image=resumed, **kw)
     assert "patch" not in records
     _assert_records_equal(records, _without_patches(reference))
-    # Only the 4 images not cached were loaded (3 readable + the unreadable one).
-    assert sorted(resumed.calls) == sorted(["c1s0", "c1s1", "c1s1b", "c1s2"])
+    # Only the images not cached were loaded again (the unreadable one always is).
+    cached = set(first.calls) - {"c1s1b"}
+    assert sorted(resumed.calls) == sorted({c.image_id for c in caps} - cached)
 
     again = _Loader()
     _assert_records_equal(label_viewpoint(caps, load_image=again, **kw),
