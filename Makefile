@@ -50,7 +50,7 @@ demo: $(INSTALLED)
 # checkout, ignored by git) even where PYTHONDONTWRITEBYTECODE is set, as some machines here
 # set it: its xdist workers, notebook kernels and the commands it starts would otherwise each
 # compile JAX, TensorFlow and the project from source again (importing the training stack:
-# 5.0 s of CPU from source, 2.6 s from bytecode, 2-core AMD EPYC). Only what is imported is
+# 4.9 s of CPU from source, 2.5-2.8 s from bytecode, 2-core AMD EPYC). Only what is imported is
 # compiled, once; compiling every installed package at install (uv's --compile-bytecode)
 # made the install take 21 s of CPU instead of 2.
 # TEST_CACHE keeps what one run computes for the next: JAX's compiled programs, one folder

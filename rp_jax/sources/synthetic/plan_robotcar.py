@@ -68,6 +68,14 @@ ROBOTCAR_LOCATION = (51.7520, -1.2577)  # Oxford
 ROBOTCAR_CAMERA_HEIGHT_M = 1.6
 
 
+def oxford_street(scene_seed: int, length_m: float) -> SceneSpec:
+    """The street both RobotCar presets drive: a street scene at Oxford's latitude and
+    longitude, ``length_m`` long, with this preset's vegetation."""
+    lat, lon = ROBOTCAR_LOCATION
+    return SceneSpec(seed=scene_seed, kind="street", length_m=length_m, latitude=lat,
+                     longitude=lon, vegetation=0.45)
+
+
 @dataclasses.dataclass(frozen=True)
 class _RobotcarSize:
     traversals: int
@@ -96,14 +104,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
         traversals = [traversals[round(i * step)] for i in range(spec.traversals)]
     lat, lon = ROBOTCAR_LOCATION
     leg = 12.0 * spec.viewpoints + 10.0  # metres per direction
-    scene_spec = SceneSpec(
-        seed=int(seeded_rng(seed, 20).integers(0, 2**31 - 1)),
-        kind="street",
-        length_m=leg + 20.0,
-        latitude=lat,
-        longitude=lon,
-        vegetation=0.45,
-    )
+    scene_spec = oxford_street(int(seeded_rng(seed, 20).integers(0, 2**31 - 1)), leg + 20.0)
     scene = frame_jobs.scene_of(scene_spec)
     # The renderer's street has right-hand traffic (its passing cars use those lanes), so
     # the car keeps right here, unlike in Oxford.

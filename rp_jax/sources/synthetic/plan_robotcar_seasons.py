@@ -46,13 +46,12 @@ from rp_jax.sources.synthetic.frame_jobs import (
     SYNTHETIC_DIR,
     FrameJob,
     Plan,
-    SceneSpec,
     frame_seed,
     seeded_rng,
     segmentation_path_of,
 )
 from rp_jax.sources.synthetic.plan_cmu import build_reference_model
-from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_CAMERA_HEIGHT_M, ROBOTCAR_LOCATION
+from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_CAMERA_HEIGHT_M, oxford_street
 from rp_jax.sources.synthetic.route import CameraMount, Route, camera_pose
 
 __all__ = ["CONDITION_WEATHER", "MOUNTS", "REAL_CAMERA", "V2_QUERIES", "plan"]
@@ -61,13 +60,16 @@ log = logging.getLogger(__name__)
 
 # The rear camera's intrinsics in the release's intrinsics/rear_intrinsics.txt (COLMAP's
 # convention, checked against the public loaders, tests/sources/test_robotcar_seasons.py),
-# used for all three cameras: the release's left and right differ only in the principal
-# point, by a few pixels.
+# used for all three cameras: the left and right cameras' own files were not checked here.
 REAL_CAMERA = Camera("PINHOLE", 1024, 1024, np.array(
     [[400.0, 0.0, float(opencv_xy([508.222931, 498.187378])[0])],
      [0.0, 400.0, float(opencv_xy([508.222931, 498.187378])[1])],
      [0.0, 0.0, 1.0]]))
-# Left and right look sideways, rear backwards (vehicle frame: x forward, y right, z down).
+# Left and right look sideways, rear backwards, as the release's images do (vehicle frame: x
+# forward, y right, z down). Not the SDK's extrinsics/mono_*.txt (not read here): the offsets
+# put the side cameras about a car's half-width out and the rear one about half its length
+# back, and the 5 deg downward tilt keeps the road in view; where exactly each camera sits
+# moves what it sees by centimetres at these distances, not what changes between conditions.
 MOUNTS = {
     "left": CameraMount(offset=(0.0, -0.6, 0.0), yaw_deg=-90.0, pitch_deg=-5.0),
     "rear": CameraMount(offset=(-2.0, 0.0, 0.0), yaw_deg=180.0, pitch_deg=-5.0),
@@ -111,16 +113,9 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
     spec = _SIZES[size]
     cam = write_layout.scale_camera(REAL_CAMERA, round(REAL_CAMERA.width * spec.scale),
                                     round(REAL_CAMERA.height * spec.scale))
-    lat, lon = ROBOTCAR_LOCATION
     route_length = spec.positions * spec.spacing_m + 10.0
-    scene_spec = SceneSpec(
-        seed=int(seeded_rng(seed, 30).integers(0, 2**31 - 1)),
-        kind="street",
-        length_m=route_length + 20.0,
-        latitude=lat,
-        longitude=lon,
-        vegetation=0.45,
-    )
+    scene_spec = oxford_street(int(seeded_rng(seed, 30).integers(0, 2**31 - 1)),
+                               route_length + 20.0)
     scene = frame_jobs.scene_of(scene_spec)
     # Right-hand traffic, as the renderer's passing cars drive (see plan_robotcar).
     x0 = (scene.length_m - route_length) / 2
@@ -132,6 +127,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
     for c_idx, condition in enumerate(spec.conditions):
         start = rcs.traversal_start(condition)
         rng = seeded_rng(seed, 31, c_idx)
+        # Urban driving speed and lane position, drawn as the CMU preset's traversals are.
         speed = float(rng.uniform(6.0, 9.0))
         wander = float(rng.normal(0.0, 0.3))
         is_reference = condition == rcs.REFERENCE_CONDITION
