@@ -235,6 +235,7 @@ def describe_observations(
     describe_on: str = "stored",
     progress: bool = True,
     more_predictors: Mapping[str, object] | None = None,
+    capture_time: CaptureTime = cmu_capture_time,
 ) -> DatabaseObservations:
     """Patches -> RP, and SIFT descriptors, for every observation of the map.
 
@@ -242,7 +243,8 @@ def describe_observations(
       rec: the pycolmap reconstruction (cameras of the database images).
       map_points: its ``MapPoints`` view.
       image_dir: folder of the database images (``<slice>/database``).
-      predictor: a ``rp_jax.predict.Predictor``.
+      predictor: a ``rp_jax.predict.Predictor``, or None where no row scores by one (the
+        repeatability is then [n_obs, 0]).
       root: the layout root (for the optional segmentation maps).
       max_keypoints: SIFT keypoints re-detected per database image.
       associate_px: an observation takes the descriptor of the nearest re-detected keypoint
@@ -254,6 +256,8 @@ def describe_observations(
       progress: tqdm bar.
       more_predictors: other predictors (name -> Predictor) run on the same patches; their
         [n_obs, T_name] outputs are ``more_repeatability[name]``.
+      capture_time: (image path, model name) -> capture time of a database image (default:
+        the Extended CMU Seasons name; ``CaptureTimes`` or a layout's own reader).
 
     Returns:
       The per-observation arrays (in the map's observation order).
@@ -261,14 +265,14 @@ def describe_observations(
     if describe_on not in ("stored", "undistorted"):
         raise ValueError(f"describe_on must be 'stored' or 'undistorted', got {describe_on!r}")
     n_obs = map_points.num_observations
-    T = predictor.num_timestamps
+    T = 0 if predictor is None else predictor.num_timestamps
     rep = np.full((n_obs, T), np.nan, np.float32)
     more = dict(more_predictors or {})
     more_rep = {k: np.full((n_obs, v.num_timestamps), np.nan, np.float32) for k, v in more.items()}
     desc = np.full((n_obs, 128), np.nan, np.float32)
     cat = np.full(n_obs, categories.UNKNOWN, np.int64)
     image_desc: dict[str, np.ndarray] = {}
-    for image in map_images(rec, map_points, image_dir, cmu_capture_time, every_image=True,
+    for image in map_images(rec, map_points, image_dir, capture_time, every_image=True,
                             progress=progress):
         feats = detect_and_describe(
             image.stored if describe_on == "stored" else image.undistorted,
@@ -279,7 +283,8 @@ def describe_observations(
         if not len(sel):
             continue
         patches = image.patches()
-        rep[sel] = image.repeatability(predictor, patches)
+        if predictor is not None:
+            rep[sel] = image.repeatability(predictor, patches)
         for k, other in more.items():
             more_rep[k][sel] = image.repeatability(other, patches)
         if len(feats):
