@@ -30,7 +30,7 @@ import datetime as dt
 import json
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -47,16 +47,23 @@ from rp_jax.mapsum import (
     read_model,
     write_summary_model,
 )
-from rp_jax.mapsum.observations import describe_observations, point_categories
+from rp_jax.mapsum.observations import (
+    cmu_capture_time,
+    describe_observations,
+    point_categories,
+)
 from rp_jax.mapsum.oracles import redetection_hits
 from rp_jax.mapsum.statistics import image_coverage, inlier_auc
 from rp_jax.progress import bar as tqdm  # the one progress helper
 
 __all__ = [
+    "CMU_SEASONS",
     "RESULT_VERSION",
     "SEED_FILE",
     "WorldMap",
     "build_map",
+    "build_map_from",
+    "Layout",
     "ensure_layout",
     "evaluate_world",
     "inlier_aucs",
@@ -120,6 +127,7 @@ class WorldMap:
     """The full map of one world and what every row reads of it."""
 
     root: Path
+    image_dir: Path  # the database images, named as in the reference model
     reconstruction: object
     map_points: object
     observations: object
@@ -133,10 +141,23 @@ class WorldMap:
 
 def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *,
               progress: bool = True) -> WorldMap:
-    """Stage 2 (Sec. V-A-1): the reference model, per-observation RP and descriptors, a
-    point's means over its observations, the VLAD index and the grid partition."""
+    """Stage 2 (Sec. V-A-1) on the Extended CMU Seasons slice ``config.map.slice``: its
+    reference model ``sparse/`` and database images (``build_map_from``)."""
+    slice_dir = root / f"slice{config.map.slice}"
+    return build_map_from(config, root, slice_dir / "sparse", slice_dir / "database",
+                          predictors, seed, progress=progress)
+
+
+def build_map_from(config, root: Path, sparse: Path, image_dir: Path,
+                   predictors: Mapping[str, object], seed: int, *,
+                   capture_time=cmu_capture_time, progress: bool = True) -> WorldMap:
+    """Stage 2 (Sec. V-A-1) of any layout: the reference model in ``sparse``, per
+    observation the RobotCar RP's (where ``predictors`` has ``"robotcar"``, and any other
+    observation predictor's) repeatability and a re-detected SIFT descriptor; a point's
+    repeatability and descriptor are the means over its observations; the VLAD index and
+    the grid partition (Sec. V-A-2). ``capture_time`` reads a database image's time
+    (``rp_jax.mapsum.observations.map_images``)."""
     m = config.map
-    sparse = root / f"slice{m.slice}" / "sparse"
     rec = read_model(sparse)
     mp = map_points_from_reconstruction(rec)
     if mp.num_points == 0:
@@ -144,11 +165,13 @@ def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *
     on_obs = [k for k in predictors if k != "robotcar"
               and k in methods.PREDICTORS and methods.PREDICTORS[k].on_observations]
     obs = describe_observations(
-        rec, mp, root / f"slice{m.slice}" / "database", predictors["robotcar"], root=root,
+        rec, mp, image_dir, predictors.get("robotcar"), root=root,
         max_keypoints=m.max_keypoints, associate_px=m.associate_px, describe_on=m.describe_on,
         progress=progress, more_predictors={k: predictors[k] for k in on_obs},
+        capture_time=capture_time,
     )
-    point_rep = {"robotcar": point_repeatability(mp, obs.repeatability)}
+    point_rep = ({"robotcar": point_repeatability(mp, obs.repeatability)}
+                 if "robotcar" in predictors else {})
     for k, r in obs.more_repeatability.items():
         point_rep[k] = point_repeatability(mp, r)
     point_desc = mean_per_point(
@@ -156,8 +179,9 @@ def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *
     )
     index, vocabulary = build_vlad_index(obs.image_descriptors, num_words=m.vlad_words, seed=seed)
     return WorldMap(
-        root=root, reconstruction=rec, map_points=mp, observations=obs, point_rep=point_rep,
-        point_descriptors=point_desc, point_categories=point_categories(mp, obs.category),
+        root=root, image_dir=image_dir, reconstruction=rec, map_points=mp, observations=obs,
+        point_rep=point_rep, point_descriptors=point_desc,
+        point_categories=point_categories(mp, obs.category),
         index=index, vocabulary=vocabulary,
         parts=partition(mp.xyz, "grid", cell_size=m.cell_size_m),
     )
@@ -256,7 +280,7 @@ def world_context(config, seed: int, world: WorldMap, queries: list[dict],
         point_descriptors=world.point_descriptors, queries=queries, hits=hits,
         inliers_by_date=full.inliers_by_date,
         extra={"point_rep": world.point_rep, "reconstruction": world.reconstruction,
-               "database_dir": world.root / f"slice{config.map.slice}" / "database",
+               "database_dir": world.image_dir,
                "observations": world.observations, "progress": progress},
     )
     info: dict = {}
@@ -367,15 +391,37 @@ def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMa
     return auc, selecting
 
 
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """Where a world's map and queries come from: stages 1 to 3 of one dataset's layout.
+
+    ``ensure(config, seed, progress=)`` -> the layout's root (rendering what a synthetic
+    world lacks); ``build_map(config, root, predictors, seed, progress=)`` -> ``WorldMap``;
+    ``queries(config, world, progress=)`` -> the query dicts of ``world_queries`` (a
+    ``condition`` key where the layout names one).
+    """
+
+    name: str
+    ensure: Callable[..., Path]
+    build_map: Callable[..., WorldMap]
+    queries: Callable[..., list[dict]]
+
+
+CMU_SEASONS = Layout("cmu_seasons", ensure_layout, build_map, world_queries)
+
+
 def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir: Path, *,
-                   fingerprint: str, progress: bool = True) -> dict:
+                   fingerprint: str, progress: bool = True, layout: Layout = CMU_SEASONS,
+                   row_names: Sequence[str] | None = None) -> dict:
     """Every row on one world (seed): the stages above, in order.
 
-    ``predictors`` maps a predictor's name (``methods.PREDICTORS``) to its trained model;
-    ``"robotcar"`` is required. Returns (and writes to ``out_dir/seed.json``, atomically;
-    a re-run with the same ``fingerprint`` reuses it) ``queries`` (names, dates, times,
-    posed flags), ``outcomes``, ``full_map``, ``auc``, ``selecting_auc``, ``coverage``,
-    ``kept_points``, the map's counts and timings.
+    ``predictors`` maps a predictor's name (``methods.PREDICTORS``) to its trained model
+    (``"robotcar"`` is required by the rows of ``methods.methods_of``); ``layout`` gives the
+    map and queries (default: the Extended CMU Seasons slice); ``row_names`` the rows
+    (default: ``methods.methods_of(config)``). Returns (and writes to ``out_dir/seed.json``,
+    atomically; a re-run with the same ``fingerprint`` reuses it) ``queries`` (names, dates,
+    times, posed flags, conditions where the layout has them), ``outcomes``, ``full_map``,
+    ``auc``, ``selecting_auc``, ``coverage``, ``kept_points``, the map's counts and timings.
     """
     from experiments import run_files
 
@@ -386,7 +432,7 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
             log.info("seed %d: reusing %s", seed, done)
             return prev
     out_dir.mkdir(parents=True, exist_ok=True)
-    names = methods.methods_of(config)
+    names = list(row_names) if row_names is not None else methods.methods_of(config)
     rows = [methods.row_of(k, config) for k in names]
     timings: dict[str, float] = {}
 
@@ -396,9 +442,9 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
         timings[f"{stage}_s"] = time.perf_counter() - tic
         return value
 
-    root = timed("layout", ensure_layout, config, seed, progress=progress)
-    world = timed("map", build_map, config, root, predictors, seed, progress=progress)
-    queries = timed("queries", world_queries, config, world, progress=progress)
+    root = timed("layout", layout.ensure, config, seed, progress=progress)
+    world = timed("map", layout.build_map, config, root, predictors, seed, progress=progress)
+    queries = timed("queries", layout.queries, config, world, progress=progress)
     loc_kwargs = localization_kwargs(config, seed)
     full = timed("full_map", localize_full_map, config, world, queries, loc_kwargs, out_dir)
     hits = timed("oracle", oracle_evidence, config, world, queries)
@@ -421,6 +467,15 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
             "dates": [q["date"].isoformat() for q in queries],
             "times": [q["time"].isoformat(timespec="seconds") for q in queries],
             "posed": [q["pose"] is not None for q in queries],
+            # What the full map's PnP kept of each query, and how many map points the query
+            # re-detects under its ground-truth pose (the oracles' evidence): why a
+            # condition localizes or not.
+            "keypoints": [int(len(q["query"].xy)) for q in queries],
+            "full_map_matches": [int(r.num_matches) for r in full.results],
+            "full_map_inliers": [int(len(r.inlier_points)) for r in full.results],
+            "redetected": [int(len(h)) for h in hits],
+            **({"conditions": [q.get("condition") for q in queries]}
+               if any("condition" in q for q in queries) else {}),
         },
         "full_map": full.outcomes,
         "query_conditions": info.get("conditional"),
