@@ -1,0 +1,575 @@
+"""Map summarization by condition: a day-built map queried at dawn, dusk, night and in snow.
+
+Paper: Sec. V and IV-B (Fig. 11) of "Learning to Predict Repeatability of Interest Points".
+Its premise is that which map points can be matched depends on the time. This experiment
+asks it where the time should matter most: a RobotCar-Seasons-like layout (Sattler et al.,
+"Benchmarking 6DOF Outdoor Visual Localization in Changing Conditions", CVPR 2018), whose
+map is the overcast daytime reference traversal and whose queries are the nine other
+traversals (dawn, dusk, night, night-rain, overcast-summer, overcast-winter, rain, snow,
+sun), each with its own light: a map built by day holds points no street lamp lights at
+night.
+
+    python -m experiments.map_summarization.conditions                 # small, seeds 0-4
+    python -m experiments.map_summarization.conditions --size tiny --seeds 0
+
+The synthetic world renders the layout (``rp_jax.sources.synthetic``, preset
+``robotcar_seasons``; its reference model with points and the queries' poses are in its
+``_synthetic/`` and ``_evaluation/`` folders). The map, the localization and every row are
+those of ``python -m experiments.map_summarization`` (``world.py``, ``methods.py``), with one
+change: a query's *date* is its traversal, so ``oracle_date`` scores a point by its
+re-detection in the other queries of the query's own traversal (the query left out: the
+same condition, minutes apart) and ``oracle_agnostic`` by as many queries drawn from the
+other traversals. The two oracles differ only in whether they know the query's condition.
+
+The rows are those that need no trained model: K-cover, random, most observed, maplab and
+the oracles. **Primary comparison**: ``oracle_date`` against ``oracle_agnostic`` on the
+night conditions (night, night-rain) at 80 % and 90 % pruned, at (0.5 m, 5 deg) and (5 m,
+10 deg), judged by the 95 % interval of the paired difference from a bootstrap of whole
+(world seed, condition) clusters: does knowing the condition keep what localizes a night
+query, independently of any learned method? Everything else is exploratory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import ml_collections
+
+from experiments import provenance, run_files
+from experiments.map_summarization import methods
+from experiments.map_summarization.config import get_config as mapsum_config
+from experiments.map_summarization.pooling import MAIN_THRESHOLD, THRESHOLD_KEYS, pool
+from experiments.map_summarization.queries import bucket
+from experiments.map_summarization.world import (
+    RESULT_VERSION,
+    Layout,
+    WorldMap,
+    build_map_from,
+    evaluate_world,
+)
+from rp_jax import files
+from rp_jax.progress import bar as tqdm  # the one progress helper
+from rp_jax.sources import robotcar_seasons as rcs
+from rp_jax.sources.layout import LayoutError
+
+__all__ = ["CONDITION_GROUPS", "PRIMARY_GROUP", "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS",
+           "get_config", "markdown", "query_evidence", "restricted", "run", "tables_markdown",
+           "validate"]
+
+# The rows that need no trained model (``methods.py``).
+ROWS = (*methods.BASELINES, *methods.ORACLE_ROWS)
+# The conditions by their light: both nights are lit by street lamps and windows only
+# (the sun 20 deg below the horizon at their start), dawn and dusk by a low sun (about
+# 7 deg; rp_jax.sources.robotcar_seasons.TRAVERSALS), the rest by day.
+CONDITION_GROUPS = {
+    "night": ("night", "night-rain"),
+    "twilight": ("dawn", "dusk"),
+    "day": ("overcast-summer", "overcast-winter", "rain", "snow", "sun"),
+}
+PRIMARY_GROUP = "night"
+PRIMARY_RATIOS = ("0.8", "0.9")
+PRIMARY_THRESHOLDS = ("0.5m_5deg", "5m_10deg")
+REFERENCE_MODEL_DIR = "_synthetic/reference_model"
+V2_QUERIES = "_evaluation/robotcar_v2_queries.txt"
+NAME = "map_summarization_conditions"
+
+
+def get_config(size: str = "small") -> ml_collections.ConfigDict:
+    """The map-summarization config (``experiments/map_summarization/config.py``: its
+    ``map`` fields set the localization and the rows) with this experiment's own fields:
+    ``map.seeds`` (five world seeds: the primary comparison's clusters are (seed,
+    condition) pairs, two night conditions each), ``map.conditions`` (the query conditions;
+    empty = every one the layout has) and ``map.root`` (a RobotCar-Seasons-like layout to
+    use instead of the synthetic world)."""
+    config = mapsum_config(size)
+    m = config.map
+    m.seeds = (0,) if size == "tiny" else (0, 1, 2, 3, 4)
+    m.conditions = ()
+    return config
+
+
+def validate(config: ml_collections.ConfigDict) -> None:
+    """Refuse fields this experiment cannot run with, naming the field (ValueError)."""
+    m = config.map
+
+    def expect(ok: bool, field: str, expected: str) -> None:
+        if not ok:
+            raise ValueError(f"config.map.{field}={m.get(field)!r}: expected {expected}")
+
+    expect(len(m.seeds) > 0 and all(isinstance(s, int) and s >= 0 for s in m.seeds), "seeds",
+           "one or more non-negative integers, e.g. (0, 1, 2, 3, 4)")
+    expect(m.synthetic_size in ("tiny", "small", "full"), "synthetic_size",
+           "one of ['tiny', 'small', 'full']")
+    unknown = sorted(set(m.conditions) - set(rcs.QUERY_CONDITIONS))
+    expect(not unknown, "conditions", f"query conditions of {rcs.DATASET} "
+           f"({', '.join(rcs.QUERY_CONDITIONS)}); not one: {unknown}")
+    expect(isinstance(m.ratios, (tuple, list)) and len(m.ratios) > 0
+           and all(isinstance(r, (int, float)) and 0 < r < 1 for r in m.ratios), "ratios",
+           "one or more pruned fractions in (0, 1), e.g. (0.5, 0.9)")
+
+
+# ----------------------------------------------------------------------------- the layout
+
+
+def _root(config, seed: int) -> Path:
+    m = config.map
+    if m.root:
+        return Path(m.root)
+    from rp_jax.datasets import builder as builder_lib
+    from rp_jax.datasets import loading
+
+    data_dir = Path(config.input.data_dir) if config.input.data_dir else loading.default_data_dir()
+    return builder_lib.synthetic_root(data_dir.absolute(), "robotcar_seasons",
+                                      config.map.synthetic_size, seed)
+
+
+def ensure_layout(config, seed: int, *, progress: bool = True) -> Path:
+    """Stage 1: the layout's root; the synthetic world renders it where it is not there.
+
+    Raises:
+      LayoutError: the layout has no reference model with points or no query poses.
+    """
+    root = _root(config, seed)
+    if not config.map.root:
+        from rp_jax.datasets import builder as builder_lib
+
+        builder_lib.ensure_synthetic("robotcar_seasons", root, size=config.map.synthetic_size,
+                                     seed=seed, workers=config.map.workers or None)
+    if not (root / REFERENCE_MODEL_DIR).is_dir():
+        raise LayoutError(
+            f"{root}: no {REFERENCE_MODEL_DIR}/ (the reference traversal's COLMAP model with "
+            f"its 3D points, as the synthetic world writes it); a real {rcs.DATASET} "
+            f"download keeps its points in {rcs.NVM_PATH}, which this experiment does not "
+            "read yet")
+    if not (root / V2_QUERIES).is_file():
+        raise LayoutError(f"{root}: no {V2_QUERIES} (every query's ground-truth pose, as the "
+                          "synthetic world writes it; the release withholds them)")
+    return root
+
+
+def capture_time(path: Path, name: str):
+    """The capture time in a layout name ``<condition>/<camera>/<unix us>.jpg``."""
+    parsed = rcs.parse_image_name(name)
+    if parsed is None:
+        raise ValueError(f"{path}: expected a name <condition>/<left|rear|right>/<unix us>.jpg "
+                         "(its capture time)")
+    return rcs.capture_time(parsed[2])
+
+
+def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *,
+              progress: bool = True) -> WorldMap:
+    """Stage 2: the reference traversal's model and images (``world.build_map_from``)."""
+    return build_map_from(config, root, root / REFERENCE_MODEL_DIR, root / "images",
+                          predictors, seed, capture_time=capture_time, progress=progress)
+
+
+def query_conditions(config, root: Path) -> list[str]:
+    """The configured query conditions the layout has (every one where none is named).
+
+    Raises:
+      LayoutError: a named condition has no folder in the layout.
+    """
+    present = [c for c in rcs.find_conditions(root) if c != rcs.REFERENCE_CONDITION]
+    wanted = list(config.map.conditions) or present
+    missing = [c for c in wanted if c not in present]
+    if missing:
+        raise LayoutError(f"{root}/images: no {', '.join(missing)} (config.map.conditions); "
+                          f"the layout has {', '.join(present) or 'no query condition'}")
+    return [c for c in rcs.QUERY_CONDITIONS if c in wanted]
+
+
+def world_queries(config, world: WorldMap, *, progress: bool = True) -> list[dict]:
+    """Stage 3: every query image of the conditions, described as the map's queries are
+    (SIFT, RootSIFT VLAD), with its pose, time, condition, and as ``date`` its traversal's
+    date (one per condition: the unit of the date oracle and of the clusters)."""
+    from rp_jax.groundtruth.features import detect_and_describe
+    from rp_jax.localize import QueryImage, rootsift, vlad
+    from rp_jax.sources import images
+
+    m = config.map
+    root = world.root
+    conditions = query_conditions(config, root)
+    poses = rcs.read_v2_poses(root / V2_QUERIES)
+    caps = rcs.read_captures(root, conditions)
+    out = []
+    for c in tqdm(caps, desc="queries", leave=False, disable=not progress):
+        img = images.read_rgb(c.image_path)
+        if img is None:
+            raise FileNotFoundError(f"{c.image_path}: query image unreadable")
+        f = detect_and_describe(img, max_keypoints=m.max_keypoints)
+        out.append({
+            "query": QueryImage(c.image_id, f.xy, f.descriptor,
+                                vlad(rootsift(f.descriptor), world.vocabulary), c.camera.K),
+            "pose": poses.get(c.image_id),
+            "time": c.time,
+            "date": c.time.date(),
+            "condition": c.meta["condition"],
+            "image_path": c.image_path,
+            "size": (int(c.camera.width), int(c.camera.height)),
+            "bucket": bucket(c.time, m.time_bucket_minutes),
+        })
+    dates: dict = {}
+    for q in out:
+        dates.setdefault(q["condition"], set()).add(q["date"])
+    owners: dict = {}
+    for condition, found in dates.items():
+        for d in found:
+            owners.setdefault(d, set()).add(condition)
+    shared = {d: sorted(c) for d, c in owners.items() if len(c) > 1}
+    if any(len(v) > 1 for v in dates.values()) or shared:
+        raise LayoutError(f"{root}: each condition must be one traversal on a date of its own "
+                          f"(the date oracle's unit); dates per condition: "
+                          f"{ {c: sorted(map(str, v)) for c, v in dates.items()} }")
+    return out
+
+
+ROBOTCAR_SEASONS = Layout("robotcar_seasons", ensure_layout, build_map, world_queries)
+
+
+# ----------------------------------------------------------------------------- statistics
+
+
+def restricted(per_seed: Sequence[Mapping], conditions: Sequence[str]) -> list[dict]:
+    """The seeds' outcomes with only the queries of ``conditions`` counted (the others'
+    ``posed`` flag cleared, which ``pooling.pool`` scores by)."""
+    out = []
+    for s in per_seed:
+        q = dict(s["queries"])
+        q["posed"] = [bool(p and c in conditions) for p, c in zip(q["posed"], q["conditions"])]
+        out.append({**s, "queries": q})
+    return out
+
+
+def _subset(per_seed: Sequence[Mapping], conditions: Sequence[str], ratios) -> dict | None:
+    """Accuracy, intervals and paired differences of the queries of ``conditions``."""
+    sub = restricted(per_seed, conditions)
+    if not any(any(s["queries"]["posed"]) for s in sub):
+        return None
+    pooled = pool(sub, ratios)
+    return {k: pooled[k] for k in ("queries", "accuracy", "interval", "paired",
+                                   "paired_interval", "oracle_date_vs_agnostic",
+                                   "full_map_accuracy")}
+
+
+EVIDENCE = ("keypoints", "redetected", "full_map_matches", "full_map_inliers")
+
+
+def query_evidence(per_seed: Sequence[Mapping], conditions: Sequence[str]) -> dict | None:
+    """Medians over the posed queries of ``conditions`` of what each finds: its SIFT
+    keypoints, the map points it re-detects under its ground-truth pose, the full map's
+    2D-3D matches and PnP inliers (``None`` where a run predates these fields)."""
+    import numpy as np
+
+    values: dict[str, list[int]] = {k: [] for k in EVIDENCE}
+    for s in per_seed:
+        q = s["queries"]
+        if not all(k in q for k in EVIDENCE):
+            return None
+        for i, (posed, c) in enumerate(zip(q["posed"], q["conditions"])):
+            if posed and c in conditions:
+                for k in EVIDENCE:
+                    values[k].append(q[k][i])
+    if not values["keypoints"]:
+        return None
+    return {k: float(np.median(v)) for k, v in values.items()}
+
+
+def primary(metrics: Mapping) -> dict:
+    """The primary comparison: oracle_date - oracle_agnostic on ``PRIMARY_GROUP`` at
+    ``PRIMARY_RATIOS`` and ``PRIMARY_THRESHOLDS`` (points, clustered 95 % interval), and
+    whether any interval is entirely above zero (the issue's criterion)."""
+    group = metrics["groups"].get(PRIMARY_GROUP)
+    if group is None:
+        return {"group": PRIMARY_GROUP, "available": False}
+    acc, gap = group["accuracy"], group["oracle_date_vs_agnostic"]
+    cells = {}
+    above = False
+    for r in PRIMARY_RATIOS:
+        if r not in gap:
+            continue
+        for th in PRIMARY_THRESHOLDS:
+            lo, hi = gap[r][th]["interval"]
+            cells[f"{r}/{th}"] = {
+                "difference": round(acc["oracle_date"][r][th] - acc["oracle_agnostic"][r][th], 2),
+                "interval": [lo, hi],
+                "only_date": gap[r][th]["only_date"],
+                "only_agnostic": gap[r][th]["only_agnostic"],
+            }
+            above = above or lo > 0
+    # A summary keeps a subset of the map's points: what the whole map cannot localize, no
+    # summary can, and the two oracles then tie at zero whatever the condition is worth.
+    full = {th: group["full_map_accuracy"][th] for th in PRIMARY_THRESHOLDS}
+    return {"group": PRIMARY_GROUP, "available": bool(cells), "cells": cells,
+            "time_matters": above, "queries": group["queries"], "full_map_accuracy": full,
+            "full_map_localizes_none": all(v == 0 for v in full.values())}
+
+
+# ----------------------------------------------------------------------------- run
+
+
+def _fingerprint(config) -> str:
+    """What makes one seed's outcomes: the map settings (less the seed list), the layout,
+    the rows and the version of their rules."""
+    settings = config.map.to_dict()
+    settings.pop("seeds", None)
+    settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(ROWS), result_version=RESULT_VERSION)
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
+        progress: bool = True) -> dict:
+    """Every world seed, every row, pooled and by condition; writes ``metrics.json``,
+    ``report.md`` and one accuracy-vs-pruning figure per condition group."""
+    from rp_jax import plots
+
+    validate(config)
+    provenance.code()
+    m = config.map
+    workdir = Path(workdir).absolute()
+    workdir.mkdir(parents=True, exist_ok=True)
+    fingerprint = _fingerprint(config)
+    seeds = [0] if m.root else [int(s) for s in m.seeds]
+    timings: dict[str, float] = {}
+    per_seed = []
+    for seed in seeds:
+        tic = time.perf_counter()
+        per_seed.append(evaluate_world(config, seed, {}, workdir / f"seed{seed}",
+                                       fingerprint=fingerprint, progress=progress,
+                                       layout=ROBOTCAR_SEASONS, row_names=ROWS))
+        timings[f"seed{seed}_s"] = round(time.perf_counter() - tic, 2)
+    ratios = [f"{float(r):.1f}" for r in m.ratios]
+    metrics = pool(per_seed, ratios)
+    conditions = [c for c in rcs.QUERY_CONDITIONS
+                  if any(c in s["queries"]["conditions"] for s in per_seed)]
+    metrics["groups"] = {}
+    for name, members in CONDITION_GROUPS.items():
+        present = [c for c in members if c in conditions]
+        sub = _subset(per_seed, present, ratios)
+        if sub is not None:
+            metrics["groups"][name] = {"conditions": present, **sub}
+    metrics["per_condition"] = {}
+    for c in conditions:
+        sub = _subset(per_seed, [c], ratios)
+        if sub is not None:
+            metrics["per_condition"][c] = {**sub, "evidence": query_evidence(per_seed, [c])}
+    metrics["condition_dates"] = {
+        c: sorted({d for s in per_seed
+                   for d, k in zip(s["queries"]["dates"], s["queries"]["conditions"]) if k == c})
+        for c in conditions}
+    labels = {k: methods.row_of(k, config).label for k in ROWS}
+    metrics.update({
+        "seeds": seeds,
+        "ratios": ratios,
+        "thresholds": list(THRESHOLD_KEYS),
+        "methods": list(ROWS),
+        "oracles": [k for k in ROWS
+                    if methods.row_of(k, config).kind in ("oracle", "diagnostic")],
+        "reference": "kcover",
+        "labels": labels,
+        "layout": ROBOTCAR_SEASONS.name,
+        "size": m.synthetic_size,
+        "min_inliers": int(m.min_inliers),
+        "maps": {str(s["seed"]): s["map"] for s in per_seed},
+        "dataset": {"map": [s["root"] for s in per_seed]},
+    })
+    metrics["primary"] = primary(metrics)
+    figures = []
+    for name, group in metrics["groups"].items():
+        figures.append(plots.plot_accuracy_vs_pruning(
+            group["accuracy"], workdir / f"accuracy_vs_pruning_{name}.png",
+            intervals=group["interval"], full_map=group["full_map_accuracy"],
+            thresholds=("0.5m_5deg", MAIN_THRESHOLD), labels=labels,
+            title=f"{name} ({', '.join(group['conditions'])}): {group['queries']} queries, "
+                  f"seeds {seeds}"))
+    metrics["figures"] = [f.name for f in figures]
+    metrics["provenance"] = provenance.gather()
+    metrics["timings"] = {**timings,
+                          "per_seed": {str(s["seed"]): s["timings"] for s in per_seed}}
+    run_files.write_json(workdir / "metrics.json", metrics)
+    files.write_text(workdir / "report.md", markdown(metrics))
+    return metrics
+
+
+# ----------------------------------------------------------------------------- report
+
+TH_NAME = {"0.25m_2deg": "(0.25 m, 2 deg)", "0.5m_5deg": "(0.5 m, 5 deg)",
+           "5m_10deg": "(5 m, 10 deg)"}
+
+
+def _pct(ratios) -> list[str]:
+    return [f"{100 * float(r):.0f} %" for r in ratios]
+
+
+def _table(first: str, columns, rows) -> list[str]:
+    columns = list(columns)
+    return ([f"| {first} | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+            + [f"| {name} | " + " | ".join(cells) + " |" for name, cells in rows])
+
+
+def _gap_cell(group: Mapping, r: str, th: str) -> str:
+    acc, gap = group["accuracy"], group["oracle_date_vs_agnostic"]
+    d = acc["oracle_date"][r][th] - acc["oracle_agnostic"][r][th]
+    lo, hi = gap[r][th]["interval"]
+    return f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}]"
+
+
+def _primary_lines(p: Mapping) -> list[str]:
+    if not p["available"]:
+        return [f"Not measured: the run has no {p['group']} query at "
+                f"{' or '.join(_pct(PRIMARY_RATIOS))} pruned.", ""]
+    rows = []
+    for k, v in p["cells"].items():
+        r, th = k.split("/")
+        rows.append((f"{100 * float(r):.0f} %, {TH_NAME[th]}",
+                     [f"{v['difference']:+.1f}",
+                      f"[{v['interval'][0]:+.1f}, {v['interval'][1]:+.1f}]",
+                      f"{v['only_date']} / {v['only_agnostic']}"]))
+    verdict = ("Time matters at night in this world: at least one interval is entirely above "
+               "zero" if p["time_matters"] else
+               "No interval is entirely above zero: this run does not show that knowing the "
+               "condition keeps more of what localizes a night query")
+    if p.get("full_map_localizes_none"):
+        verdict = (f"Not measurable in this run: the full map localizes none of the "
+                   f"{p['queries']} {p['group']} queries at either threshold, and no summary "
+                   "localizes what the whole map cannot; both oracles read zero whatever the "
+                   "condition is worth")
+    return [
+        "`oracle_date` (the other queries of the query's own traversal) minus "
+        f"`oracle_agnostic` (as many queries of other traversals), {p['group']} conditions "
+        f"({p['queries']} queries), in points, with the 95 % interval from a bootstrap of "
+        "whole (world seed, condition) clusters and the queries only one of them localizes:",
+        "",
+        *_table("pruned, threshold", ["difference", "clustered 95 % interval",
+                                      "only date / only agnostic"], rows),
+        "",
+        f"{verdict} ({len(p['cells'])} intervals read, none corrected for the others).",
+        "",
+    ]
+
+
+def tables_markdown(metrics: Mapping) -> str:
+    """The results tables of a run (what ``report.md`` and the documentation show): the
+    primary comparison, the full map by condition, each condition group's accuracy and
+    oracle gap, and each condition at the highest ratio."""
+    labels = metrics["labels"]
+    ratios = metrics["ratios"]
+    lines = [
+        "### Primary comparison: does knowing the condition help at night?",
+        "",
+        *_primary_lines(metrics["primary"]),
+        "### Full map by condition",
+        "",
+    ]
+    per = metrics["per_condition"]
+    lines += _table("condition", ["queries", *[TH_NAME[t] for t in THRESHOLD_KEYS]], [
+        (c, [str(sub["queries"]), *[f"{sub['full_map_accuracy'][t]:.1f}" for t in THRESHOLD_KEYS]])
+        for c, sub in per.items()])
+    lines.append("")
+    if all(sub.get("evidence") for sub in per.values()):
+        lines += [
+            "What a query finds in the full map, medians over each condition's queries: its "
+            "SIFT keypoints, the map points it re-detects under its ground-truth pose (the "
+            "oracles' evidence), the 2D-3D matches the full map's localization proposes and "
+            f"the PnP inliers it keeps (a pose needs {metrics['min_inliers']}):", "",
+            *_table("condition", ["keypoints", "re-detected", "matches", "PnP inliers"], [
+                (c, [f"{sub['evidence'][k]:.0f}" for k in EVIDENCE]) for c, sub in per.items()]),
+            ""]
+    for name, group in metrics["groups"].items():
+        lines += [f"### {name.capitalize()} ({', '.join(group['conditions'])}): "
+                  f"{group['queries']} queries (exploratory)", ""]
+        for th in PRIMARY_THRESHOLDS:
+            lines += [f"Accuracy (%) within {TH_NAME[th]}; full map "
+                      f"{group['full_map_accuracy'][th]:.1f} %. `*`: the clustered interval of "
+                      "the difference to K-cover excludes zero.", ""]
+            rows = []
+            for k in metrics["methods"]:
+                cells = []
+                for r in ratios:
+                    lo, hi = group["paired_interval"][k][r][th]
+                    star = "*" if k != metrics["reference"] and (lo > 0 or hi < 0) else ""
+                    cells.append(f"{group['accuracy'][k][r][th]:.1f}{star}")
+                rows.append((labels.get(k, k), cells))
+            lines += [*_table("row", _pct(ratios), rows), ""]
+        lines += ["`oracle_date` - `oracle_agnostic` (points, clustered 95 % interval):", "",
+                  *_table("threshold", _pct(ratios), [
+                      (TH_NAME[th], [_gap_cell(group, r, th) for r in ratios])
+                      for th in PRIMARY_THRESHOLDS]), ""]
+    last = ratios[-1]
+    conds = list(per)
+    lines += [f"### Each condition at {100 * float(last):.0f} % pruned, (5 m, 10 deg) "
+              "(exploratory; a condition's clusters are its world seeds)", "",
+              *_table("row", conds, [
+                  ("full map", [f"{per[c]['full_map_accuracy'][MAIN_THRESHOLD]:.1f}"
+                                for c in conds]),
+                  *[(labels.get(k, k), [f"{per[c]['accuracy'][k][last][MAIN_THRESHOLD]:.1f}"
+                                        for c in conds]) for k in metrics["methods"]]])]
+    return "\n".join(lines) + "\n"
+
+
+def markdown(metrics: Mapping) -> str:
+    """``report.md``: every sentence computed from ``metrics``."""
+    prov = metrics.get("provenance", {})
+    return "\n".join([
+        "# Map summarization by condition (RobotCar-Seasons-like)",
+        "",
+        f"{metrics['queries']} queries with a ground-truth pose, world seeds "
+        f"{metrics['seeds']}, size {metrics['size']}; the map is the overcast daytime "
+        "reference traversal. Rows: the baselines and oracles of the map-summarization "
+        "experiment; a query's *date* is its traversal (its condition).",
+        "",
+        tables_markdown(metrics),
+        f"Command: `{prov.get('command', '')}`; code {prov.get('code', '')}; "
+        f"{prov.get('machine', '')}; {prov.get('date', '')}.",
+        "",
+    ])
+
+
+# ----------------------------------------------------------------------------- command
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m experiments.map_summarization.conditions``: run and print the primary
+    comparison."""
+    import sys
+
+    from experiments import cli
+    from experiments.map_summarization.__main__ import _seeds
+
+    def add_flags(parser) -> None:
+        parser.add_argument("--seeds", type=_seeds, default=None, metavar="A,B,...",
+                            help="synthetic world seeds (default 0,1,2,3,4; tiny: 0)")
+
+    config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
+                                            default_size="small", add_flags=add_flags)
+    if args.seeds is not None:
+        config.map.seeds = args.seeds
+    from rp_jax import platform
+    from rp_jax import progress as progress_lib
+
+    if args.quiet:
+        progress_lib.set_quiet()
+    platform.configure_cpu()
+    prog = "python -m experiments.map_summarization.conditions"
+    try:
+        validate(config)
+        metrics = run(config, workdir)
+    except (ValueError, LayoutError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
+    p = metrics["primary"]
+    if p["available"]:
+        for k, v in p["cells"].items():
+            print(f"  {p['group']} {k}: oracle_date - oracle_agnostic {v['difference']:+.1f} "
+                  f"[{v['interval'][0]:+.1f}, {v['interval'][1]:+.1f}]")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
