@@ -62,6 +62,8 @@ MAPSUM = RESULTS / "map_summarization" / "metrics.json"
 # run on the held-out training slice 6 that chose the recipe of the recommended row.
 MAPSUM_UNSEEN = RESULTS / "map_summarization_unseen_seeds" / "metrics.json"
 MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.json"
+# Map summarization by condition on the RobotCar-Seasons-like world.
+MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
 
 # The baselines of Sec. IV-A in the order the paper's discussion takes them; names as
@@ -421,6 +423,18 @@ def map_summarization_tables(metrics: Mapping | None, path: Path = MAPSUM) -> st
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
+def map_summarization_conditions_tables(metrics: Mapping | None,
+                                        path: Path = MAPSUM_CONDITIONS) -> str:
+    """The by-condition run's tables (``conditions.tables_markdown``) and its caption."""
+    if metrics is None:
+        return ("_No by-condition map-summarization result is committed yet "
+                f"(`{path.as_posix()}`)._\n")
+    from experiments.map_summarization import conditions
+
+    body = conditions.tables_markdown(metrics).rstrip("\n") + "\n"
+    return body + f"\nRun: {run_caption(metrics)}.\n"
+
+
 def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTION) -> str:
     """The rule of ``config.map.rp_method`` on the selection run (held-out training slice):
     each candidate row's mean accuracy over the run's ratios at (0.5 m, 5 deg) and
@@ -471,6 +485,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "map_summarization": lambda root: map_summarization_tables(read_json(root / MAPSUM)),
     "map_summarization_unseen_seeds": lambda root: map_summarization_tables(
         read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),
+    "map_summarization_conditions": lambda root: map_summarization_conditions_tables(
+        read_json(root / MAPSUM_CONDITIONS)),
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
 }
