@@ -74,6 +74,18 @@ _OVERRIDE = re.compile(r"^--?(no)?config\.")
 _BOOL_WORDS = {"yes": "true", "no": "false"}
 
 
+def seed_list(text: str) -> tuple[int, ...]:
+    """Comma-separated non-negative world seeds, ``A,B,...`` (an argparse type)."""
+    try:
+        seeds = tuple(int(s) for s in text.split(",") if s.strip())
+    except ValueError:
+        seeds = ()
+    if not seeds or any(s < 0 for s in seeds):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected comma-separated non-negative integers such as 0,1,2")
+    return seeds
+
+
 def override_args(rest: list[str], parser: argparse.ArgumentParser) -> list[str]:
     """The ``--config.FIELD[=VALUE]`` arguments of ``rest`` (a value may follow as the next
     argument, as absl allows); anything else is an error naming it."""

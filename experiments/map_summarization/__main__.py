@@ -22,19 +22,8 @@ NAME = "map_summarization"
 DEFAULT_SIZE = "small"  # the whole run in under 20 minutes on 2 cores (see README)
 
 
-def _seeds(text: str) -> tuple[int, ...]:
-    try:
-        seeds = tuple(int(s) for s in text.split(",") if s.strip())
-    except ValueError:
-        seeds = ()
-    if not seeds or any(s < 0 for s in seeds):
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: expected comma-separated non-negative integers such as 0,1,2")
-    return seeds
-
-
 def _add_flags(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seeds", type=_seeds, default=None, metavar="A,B,...",
+    parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                         help="synthetic world seeds the maps are built on (default "
                         "--config.map.seeds, 0,1,2)")
 

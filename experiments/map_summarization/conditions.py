@@ -539,10 +539,9 @@ def main(argv: list[str] | None = None) -> int:
     import sys
 
     from experiments import cli
-    from experiments.map_summarization.__main__ import _seeds
 
     def add_flags(parser) -> None:
-        parser.add_argument("--seeds", type=_seeds, default=None, metavar="A,B,...",
+        parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                             help="synthetic world seeds (default 0,1,2,3,4; tiny: 0)")
 
     config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
