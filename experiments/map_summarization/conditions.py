@@ -71,6 +71,13 @@ CONDITION_GROUPS = {
     "twilight": ("dawn", "dusk"),
     "day": ("overcast-summer", "overcast-winter", "rain", "snow", "sun"),
 }
+# The oracles' labels in this layout's words: a query's "date" is its traversal, one per
+# condition.
+CONDITION_LABELS = {
+    "oracle_agnostic": "oracle: other conditions' re-detection (as many images)",
+    "oracle_date": "oracle: own condition's re-detection, query left out",
+    "oracle_inliers": "oracle: all other conditions' PnP inliers",
+}
 PRIMARY_GROUP = "night"
 PRIMARY_RATIOS = ("0.8", "0.9")
 PRIMARY_THRESHOLDS = ("0.5m_5deg", "5m_10deg")
@@ -362,7 +369,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         c: sorted({d for s in per_seed
                    for d, k in zip(s["queries"]["dates"], s["queries"]["conditions"]) if k == c})
         for c in conditions}
-    labels = {k: methods.row_of(k, config).label for k in ROWS}
+    labels = {k: CONDITION_LABELS.get(k, methods.row_of(k, config).label) for k in ROWS}
     metrics.update({
         "seeds": seeds,
         "ratios": ratios,

@@ -41,6 +41,8 @@ def test_every_query_is_scored_in_its_condition_and_group(tiny):
     assert dates["night"] == [rcs.CAPTURE_DATES["night"].isoformat()]
     assert len({v[0] for v in dates.values()}) == len(dates)
     assert metrics["methods"] == list(mc.ROWS) and metrics["ratios"] == list(RATIOS)
+    assert metrics["labels"]["oracle_date"] == mc.CONDITION_LABELS["oracle_date"]
+    assert "own condition's re-detection" in (workdir / "report.md").read_text()
 
 
 def test_the_report_names_the_primary_comparison(tiny):
