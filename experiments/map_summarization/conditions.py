@@ -39,12 +39,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import ml_collections
+import numpy as np
 
 from experiments import provenance, run_files
 from experiments.map_summarization import methods
 from experiments.map_summarization.config import get_config as mapsum_config
 from experiments.map_summarization.pooling import MAIN_THRESHOLD, THRESHOLD_KEYS, pool
-from experiments.map_summarization.queries import bucket
+from experiments.map_summarization.queries import bucket, describe_query
 from experiments.map_summarization.world import (
     RESULT_VERSION,
     Layout,
@@ -194,8 +195,6 @@ def world_queries(config, world: WorldMap, *, progress: bool = True) -> list[dic
     """Stage 3: every query image of the conditions, described as the map's queries are
     (SIFT, RootSIFT VLAD), with its pose, time, condition, and as ``date`` its traversal's
     date (one per condition: the unit of the date oracle and of the clusters)."""
-    from rp_jax.groundtruth.features import detect_and_describe
-    from rp_jax.localize import QueryImage, rootsift, vlad
     from rp_jax.sources import images
 
     m = config.map
@@ -208,27 +207,16 @@ def world_queries(config, world: WorldMap, *, progress: bool = True) -> list[dic
         img = images.read_rgb(c.image_path)
         if img is None:
             raise FileNotFoundError(f"{c.image_path}: query image unreadable")
-        f = detect_and_describe(img, max_keypoints=m.max_keypoints)
-        out.append({
-            "query": QueryImage(c.image_id, f.xy, f.descriptor,
-                                vlad(rootsift(f.descriptor), world.vocabulary), c.camera.K),
-            "pose": poses.get(c.image_id),
-            "time": c.time,
-            "date": c.time.date(),
-            "condition": c.meta["condition"],
-            "image_path": c.image_path,
-            "size": (int(c.camera.width), int(c.camera.height)),
-            "bucket": bucket(c.time, m.time_bucket_minutes),
-        })
+        q = describe_query(c.image_id, img, c.camera, poses.get(c.image_id), c.time,
+                           c.image_path, m.max_keypoints, world.vocabulary)
+        q["condition"] = c.meta["condition"]
+        q["bucket"] = bucket(c.time, m.time_bucket_minutes)
+        out.append(q)
     dates: dict = {}
     for q in out:
         dates.setdefault(q["condition"], set()).add(q["date"])
-    owners: dict = {}
-    for condition, found in dates.items():
-        for d in found:
-            owners.setdefault(d, set()).add(condition)
-    shared = {d: sorted(c) for d, c in owners.items() if len(c) > 1}
-    if any(len(v) > 1 for v in dates.values()) or shared:
+    one_each = all(len(v) == 1 for v in dates.values())
+    if not one_each or len(set.union(set(), *dates.values())) != len(dates):
         raise LayoutError(f"{root}: each condition must be one traversal on a date of its own "
                           f"(the date oracle's unit); dates per condition: "
                           f"{ {c: sorted(map(str, v)) for c, v in dates.items()} }")
@@ -270,8 +258,6 @@ def query_evidence(per_seed: Sequence[Mapping], conditions: Sequence[str]) -> di
     """Medians over the posed queries of ``conditions`` of what each finds: its SIFT
     keypoints, the map points it re-detects under its ground-truth pose, the full map's
     2D-3D matches and PnP inliers (``None`` where a run predates these fields)."""
-    import numpy as np
-
     values: dict[str, list[int]] = {k: [] for k in EVIDENCE}
     for s in per_seed:
         q = s["queries"]

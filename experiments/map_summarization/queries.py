@@ -14,7 +14,7 @@ from rp_jax.localize import QueryImage, rootsift, vlad
 from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import cmu_seasons
 
-__all__ = ["bucket", "held_out_traversals", "load_queries"]
+__all__ = ["bucket", "describe_query", "held_out_traversals", "load_queries"]
 
 
 def held_out_traversals(root: Path, slice_id: int, reference: set[str]) -> list:
@@ -59,25 +59,28 @@ def load_queries(
         img = cmu_seasons.load_image(c)
         if img is None:
             raise FileNotFoundError(f"{c.image_path}: query image unreadable")
-        f = detect_and_describe(img, max_keypoints=max_keypoints)
         cam = cmu_seasons.undistorted_camera(c)
-        out.append(
-            {
-                "query": QueryImage(
-                    c.image_path.name,
-                    f.xy,
-                    f.descriptor,
-                    vlad(rootsift(f.descriptor), vocabulary),
-                    cam.K,
-                ),
-                "pose": None if c.R is None else (np.asarray(c.R), np.asarray(c.t)),
-                "time": c.time,
-                "date": c.time.date(),
-                "image_path": c.image_path,
-                "size": (int(cam.width), int(cam.height)),
-            }
-        )
+        pose = None if c.R is None else (np.asarray(c.R), np.asarray(c.t))
+        out.append(describe_query(c.image_path.name, img, cam, pose, c.time, c.image_path,
+                                  max_keypoints, vocabulary))
     return out
+
+
+def describe_query(name: str, img: np.ndarray, camera, pose, time: dt.datetime,
+                   image_path: Path, max_keypoints: int, vocabulary: np.ndarray) -> dict:
+    """One query as every map-summarization stage reads it: its ``QueryImage`` (SIFT and
+    RootSIFT VLAD), ``pose`` (R, t or None), ``time``, ``date``, ``image_path`` and ``size``
+    (of ``camera``, a pinhole with ``K``, ``width`` and ``height``)."""
+    f = detect_and_describe(img, max_keypoints=max_keypoints)
+    return {
+        "query": QueryImage(name, f.xy, f.descriptor, vlad(rootsift(f.descriptor), vocabulary),
+                            camera.K),
+        "pose": pose,
+        "time": time,
+        "date": time.date(),
+        "image_path": image_path,
+        "size": (int(camera.width), int(camera.height)),
+    }
 
 
 def bucket(when: dt.datetime, minutes: int) -> dt.datetime:
