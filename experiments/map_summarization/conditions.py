@@ -57,6 +57,7 @@ from rp_jax import files
 from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
+from rp_jax.sources.synthetic import presets
 
 __all__ = ["CONDITION_GROUPS", "PRIMARY_GROUP", "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS",
            "get_config", "markdown", "query_evidence", "restricted", "run", "tables_markdown",
@@ -307,10 +308,11 @@ def primary(metrics: Mapping) -> dict:
 
 def _fingerprint(config) -> str:
     """What makes one seed's outcomes: the map settings (less the seed list), the layout,
-    the rows and the version of their rules."""
+    the world version that renders it, the rows and the version of their rules."""
     settings = config.map.to_dict()
     settings.pop("seeds", None)
-    settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(ROWS), result_version=RESULT_VERSION)
+    settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(ROWS), result_version=RESULT_VERSION,
+                    world=presets.world_version("robotcar_seasons"))
     text = json.dumps(settings, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -5,16 +5,26 @@ images get dark and noisy there: a webcam's auto-exposure raises its gain as the
 falls, up to a maximum, after which frames stay dark and the noise rises. This module
 models that pipeline on linear radiance so that the synthetic world's night frames lose
 interest points the way real ones do.
+
+A ``Sensor`` says how far a camera can go: the longest exposure its frame rate allows and
+the amplification beyond it. Below the exposure limit a darker scene is met with a longer
+exposure (the same photons per pixel, so the same noise as by day, but motion blur for a
+moving camera); beyond it, with gain, which raises the noise with it. ``WEBCAM`` is the
+pipeline's original camera (all of its range above a sunny noon counts as gain, no blur);
+``GRASSHOPPER2_11HZ`` is the Oxford RobotCar's Grasshopper2 at the dataset's frame rate.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import math
 
 import cv2
 import numpy as np
 
-__all__ = ["expose", "TARGET_MEAN", "MAX_GAIN", "MIN_GAIN"]
+__all__ = ["expose", "motion_blur", "motion_field", "Sensor", "WEBCAM", "GRASSHOPPER2_11HZ",
+           "sensor_named", "TARGET_MEAN", "MAX_GAIN", "MIN_GAIN"]
 
 TARGET_MEAN = 0.2  # linear mean luminance auto-exposure aims at
 MIN_GAIN = 0.5
@@ -22,6 +32,116 @@ MAX_GAIN = 40.0  # the sensor's limit: beyond it dusk and night frames stay dark
 _DAY_GAIN = 2.0  # the gain of a sunny noon frame: noise is defined relative to it
 _SHOT = 4e-4
 _READ = 6e-4
+
+
+@dataclasses.dataclass(frozen=True)
+class Sensor:
+    """How far a camera's auto-exposure can brighten a dark scene.
+
+    Gains are the total scale from scene radiance to the linear image (exposure time times
+    amplification), in the units where a sunny noon frame takes ``_DAY_GAIN``.
+
+    Attributes:
+      name: the sensor's name (``sensor_named`` finds it back).
+      min_gain, max_gain: the range of the total gain.
+      exposure_gain: the total gain reached by the longest exposure without amplification;
+        above it the noise grows with the gain.
+      max_exposure_s: the longest exposure (s), for motion blur; None: no blur modelled.
+    """
+
+    name: str
+    min_gain: float
+    max_gain: float
+    exposure_gain: float
+    max_exposure_s: float | None = None
+
+    def exposure_s(self, gain: float) -> float:
+        """The exposure time of a frame taken at ``gain`` (0 when no blur is modelled)."""
+        if self.max_exposure_s is None:
+            return 0.0
+        return self.max_exposure_s * min(gain / self.exposure_gain, 1.0)
+
+
+WEBCAM = Sensor("webcam", MIN_GAIN, MAX_GAIN, _DAY_GAIN)
+
+
+def _grasshopper2_11hz() -> Sensor:
+    """The RobotCar's side and rear cameras (Maddern et al., "1 Year, 1000 km: The Oxford
+    RobotCar Dataset", IJRR 2017): Point Grey Grasshopper2 GS2-FW-14S5C-C, 2/3" Sony ICX285
+    CCD, global shutter, Sunex DSL315B fisheye at f/2.3, 11.1 Hz.
+
+    - Longest exposure: one frame period, 1 / 11.1 s.
+    - A sunny noon frame's exposure from the exposure equation N² / t = L S / K (ISO 2720,
+      K = 12.5) for the "sunny 16" scene (L of about 3,200 cd/m²) at N = 2.3 and a base
+      sensitivity S = ISO 100 (assumed: the order of a colour 2/3" CCD of its generation,
+      not read from the sensor's data sheet here): about 0.2 ms, so the exposure alone
+      spans about 430 times a sunny noon frame's.
+    - Amplification: 0-24 dB (the Grasshopper2's gain range), a factor of 15.8 beyond.
+    """
+    frame_s = 1.0 / 11.1
+    noon_s = 12.5 * 2.3**2 / (3200.0 * 100.0)
+    exposure_gain = _DAY_GAIN * frame_s / noon_s
+    return Sensor("grasshopper2_11hz", MIN_GAIN, exposure_gain * 10 ** (24.0 / 20.0),
+                  exposure_gain, frame_s)
+
+
+GRASSHOPPER2_11HZ = _grasshopper2_11hz()
+_SENSORS = {s.name: s for s in (WEBCAM, GRASSHOPPER2_11HZ)}
+
+
+def sensor_named(name: str | None) -> Sensor:
+    """The sensor called ``name`` (None: ``WEBCAM``)."""
+    if name is None:
+        return WEBCAM
+    try:
+        return _SENSORS[name]
+    except KeyError:
+        raise ValueError(f"unknown sensor {name!r}; known: {', '.join(_SENSORS)}") from None
+
+
+def motion_field(K: np.ndarray, R: np.ndarray, depth: np.ndarray, velocity: np.ndarray,
+            seconds: float) -> np.ndarray:
+    """The image displacement (H, W, 2) of the static scene while a camera moving at
+    ``velocity`` (world, m/s) exposes for ``seconds``, centred on the frame's instant (the
+    camera moves by ``velocity * seconds``; points at infinity do not move)."""
+    h, w = depth.shape
+    uu, vv = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    finite = np.isfinite(depth)
+    z = np.where(finite, depth, 1.0).astype(np.float32)
+    rays = np.stack([uu, vv, np.ones_like(uu)], -1) @ np.linalg.inv(K).T.astype(np.float32)
+    Xc = rays * z[..., None] - (R @ np.asarray(velocity, np.float64) * seconds).astype(np.float32)
+    x = Xc @ K.T.astype(np.float32)
+    zc = np.maximum(x[..., 2], np.float32(1e-3))
+    out = np.stack([x[..., 0] / zc - uu, x[..., 1] / zc - vv], -1)
+    out[~finite | (Xc[..., 2] <= 1e-3)] = 0.0
+    return np.ascontiguousarray(out, np.float32)
+
+
+def motion_blur(img: np.ndarray, motion: np.ndarray, fraction: float) -> np.ndarray:
+    """Averages each pixel along the path the scene point behind it takes in the image
+    while the shutter is open (a gather approximation of the blur of a translating camera).
+
+    Args:
+      img: (H, W, C) float32 linear radiance.
+      motion: (H, W, 2) float32 image displacement (px) over the sensor's longest
+        exposure, centred on the frame's instant (from ``-motion/2`` to ``+motion/2``).
+      fraction: this frame's exposure over the longest one.
+
+    Returns:
+      The blurred image (a new array; ``img`` itself when there is no motion to speak of).
+    """
+    length = float(np.abs(motion).max(initial=0.0)) * fraction
+    samples = min(int(math.ceil(length)) + 1, 32)
+    if samples < 2:
+        return img
+    h, w = img.shape[:2]
+    gx, gy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    out = np.zeros_like(img)
+    for s in np.linspace(-0.5, 0.5, samples, dtype=np.float32) * np.float32(fraction):
+        out += cv2.remap(img, gx + s * motion[..., 0], gy + s * motion[..., 1],
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out *= np.float32(1.0 / samples)
+    return out
 
 
 @functools.lru_cache(maxsize=16)
@@ -78,7 +198,11 @@ def _zero_map(height: int, width: int) -> np.ndarray:
 
 
 def expose(
-    radiance: np.ndarray, K: np.ndarray, rng: np.random.Generator
+    radiance: np.ndarray,
+    K: np.ndarray,
+    rng: np.random.Generator,
+    sensor: Sensor = WEBCAM,
+    motion: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Turns linear scene radiance into a webcam's 8-bit RGB image.
 
@@ -89,9 +213,13 @@ def expose(
       radiance: (H, W, 3) float32 linear radiance (modified in place).
       K: 3x3 intrinsics (vignetting is radial around the principal point).
       rng: generator of this frame's sensor noise.
+      sensor: the camera's exposure and gain range.
+      motion: (H, W, 2) image displacement over the sensor's longest exposure (a moving
+        camera), or None.
 
     Returns:
-      (rgb uint8 (H, W, 3), meta with ``gain``, ``exposure_mean``, ``noise_sigma``).
+      (rgb uint8 (H, W, 3), meta with ``gain``, ``exposure_mean``, ``noise_sigma_dark`` and,
+      for a sensor with an exposure limit, ``exposure_s``).
     """
     h, w = radiance.shape[:2]
     # (the lens PSF is applied to the albedo by the renderer)
@@ -99,9 +227,12 @@ def expose(
     vig = _vignette3(w, h, float(K[0, 0]), float(K[0, 2]), float(K[1, 2]))
     lum = (img[::4, ::4] * vig[::4, ::4]) @ np.float32([0.2126, 0.7152, 0.0722])
     mean = float(np.mean(np.minimum(lum, 2.0)))
-    gain = float(np.clip(TARGET_MEAN / max(mean, 1e-6), MIN_GAIN, MAX_GAIN))
+    gain = float(np.clip(TARGET_MEAN / max(mean, 1e-6), sensor.min_gain, sensor.max_gain))
+    exposure_s = sensor.exposure_s(gain)
+    if motion is not None and exposure_s > 0:
+        img = motion_blur(img, motion, exposure_s / sensor.max_exposure_s)
     cv2.multiply(img, vig, dst=img, scale=gain)
-    rel = max(gain / _DAY_GAIN, 1.0)
+    rel = max(gain / sensor.exposure_gain, 1.0)
     # sigma = sqrt(max(img, 0) * shot + read^2), then img += sigma * N(0, 1).
     sigma = cv2.max(img, 0.0)
     cv2.addWeighted(sigma, _SHOT * rel, sigma, 0.0, (_READ * rel) ** 2, dst=sigma)
@@ -119,4 +250,7 @@ def expose(
         cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_REPLICATE,
     ).reshape(h, w, 3)
-    return rgb, {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * rel)}
+    meta = {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * rel)}
+    if sensor.max_exposure_s is not None:
+        meta["exposure_s"] = exposure_s
+    return rgb, meta

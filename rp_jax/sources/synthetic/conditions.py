@@ -41,6 +41,8 @@ __all__ = [
 ]
 
 WEATHERS = ("clear", "partly_cloudy", "overcast", "rain", "snow")
+# The night sky's light on an upward surface by default (``photometry.LEGACY.night_sky``).
+NIGHT_SKY = 2.5e-4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +70,7 @@ class Conditions:
     wind_speed: float  # m/s, the day's wind (drifts clouds, moves foliage)
     local_hour: float
     day_of_year: int
+    night_glow: float = 1.0  # the city's glow at night, relative to the default night sky's
 
     def as_meta(self) -> dict:
         """JSON-friendly summary for ``Frame.meta``."""
@@ -281,7 +284,12 @@ def _air_mass(el_deg: float) -> float:
 
 
 def conditions_at(
-    seed: int, latitude: float, longitude: float, when: dt.datetime, weather: str | None = None
+    seed: int,
+    latitude: float,
+    longitude: float,
+    when: dt.datetime,
+    weather: str | None = None,
+    night_sky: float = NIGHT_SKY,
 ) -> Conditions:
     """The capture conditions of a scene at an instant.
 
@@ -292,6 +300,9 @@ def conditions_at(
       weather: a known day's sky (one of ``WEATHERS`` but "snow"), for a recording whose
         conditions are documented (the CMU reference traversal: sunny); None draws the
         day's weather. The snow on the ground still follows the season's snow pack.
+      night_sky: the moonless night sky's light on an upward surface, in the renderer's
+        units (``photometry.StreetLighting.night_sky``); the night sky's own glow scales
+        with it.
 
     Returns:
       ``Conditions``.
@@ -331,7 +342,8 @@ def conditions_at(
     s = np.sin(np.radians(max(el, 0.0)))
     clear_sky = 0.06 + 0.16 * s**0.8
     twilight = 10.0 ** (min(el, 0.0) / 3.2)  # ~2 decades over civil twilight
-    night_floor = 2.5e-4
+    night_floor = night_sky
+    glow = night_sky / NIGHT_SKY  # the sky's own night glow, relative to the default's
     if kind in ("overcast", "rain", "snow"):
         sky_level = (0.06 + 0.42 * s) * (0.75 if kind != "overcast" else 0.9)
         direct = direct * 0.0
@@ -360,9 +372,9 @@ def conditions_at(
         zenith, horizon = np.array([0.62, 0.64, 0.68]) * g, np.array([0.78, 0.80, 0.83]) * g
         if kind == "rain":
             zenith, horizon = zenith * 0.7, horizon * 0.75
-    zenith = zenith * twilight + np.array([0.0004, 0.0005, 0.001])
-    # city glow at night (~1/300 of day)
-    horizon = horizon * twilight + np.array([0.003, 0.002, 0.0012])
+    zenith = zenith * twilight + glow * np.array([0.0004, 0.0005, 0.001])
+    # city glow at night (~1/300 of day at the default night sky)
+    horizon = horizon * twilight + glow * np.array([0.003, 0.002, 0.0012])
     lamps_on = el < 1.0 or (kind in ("rain", "snow") and el < 6.0)
     if 17 <= hour < 23:
         lit = 0.55
@@ -394,4 +406,5 @@ def conditions_at(
         wind_speed=float(np.hypot(*wind)),
         local_hour=hour,
         day_of_year=date.timetuple().tm_yday,
+        night_glow=glow,
     )

@@ -92,6 +92,9 @@ class FrameJob:
       segmentation_path: where the category map goes (``.png``), or None.
       keypoints_path: where SIFT keypoints with their depth go (``.npz``), or None.
       weather: the day's sky when the real recording documents it, else None (drawn).
+      lighting: the street lighting's name (``photometry.named``; None: the default).
+      sensor: the camera's name (``camera_effects.sensor_named``; None: the webcam).
+      velocity: the camera's world velocity (m/s) while it exposes, or None (still).
     """
 
     scene: SceneSpec
@@ -108,6 +111,9 @@ class FrameJob:
     segmentation_path: Path | None = None
     keypoints_path: Path | None = None
     weather: str | None = None
+    lighting: str | None = None
+    sensor: str | None = None
+    velocity: tuple[float, float, float] | None = None
 
     @property
     def outputs(self) -> list[Path]:
@@ -153,10 +159,18 @@ def scene_of(spec: SceneSpec):
 
 
 def render_frame(job: FrameJob):
+    from rp_jax.sources.synthetic import camera_effects, photometry
     from rp_jax.sources.synthetic.render import render
 
     return render(
-        scene_of(job.scene), _make_view(job), job.when, seed=job.frame_seed, weather=job.weather
+        scene_of(job.scene),
+        _make_view(job),
+        job.when,
+        seed=job.frame_seed,
+        weather=job.weather,
+        lighting=photometry.named(job.lighting),
+        sensor=camera_effects.sensor_named(job.sensor),
+        velocity=None if job.velocity is None else np.asarray(job.velocity, np.float64),
     )
 
 

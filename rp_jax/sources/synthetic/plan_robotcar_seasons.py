@@ -22,10 +22,15 @@ are those of that instant in Oxford, and writes the real layout, read by
 The sky of a traversal is forced where its condition names it (rain and night-rain: rain;
 sun: clear; the reference and both overcast ones: overcast) and drawn from the world's
 climatology elsewhere (dawn, dusk, night, snow): in particular the snow traversal has snow
-on the ground only where the world's winter series puts it, not by fiat. Night frames are
-the renderer's nights (street lamps, lit windows, the camera's gain limit), not yet the
-night physics the RobotCar-Seasons issue asks for (lamp photometry by street type,
-headlights, wet-road reflections).
+on the ground only where the world's winter series puts it, not by fiat.
+
+Nights are lit and seen in physical units: street lamps of a 70 W sodium lantern's
+intensity under a night sky of about 0.1 lux, lit windows of tens of cd/m²
+(``photometry.EN_13201``), taken by the RobotCar's Grasshopper2 at 11.1 Hz
+(``camera_effects.GRASSHOPPER2_11HZ``): its exposure lengthens up to one frame period, with
+the motion blur of the moving car, then its gain rises with the noise. Not modelled:
+lamp types by street class, the car's own and passing cars' headlights on the street, and
+wet-road reflections in night-rain.
 """
 
 from __future__ import annotations
@@ -40,7 +45,7 @@ import numpy as np
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.capture import Camera
 from rp_jax.sources.colmap_model import opencv_xy
-from rp_jax.sources.synthetic import frame_jobs, write_layout
+from rp_jax.sources.synthetic import camera_effects, frame_jobs, photometry, write_layout
 from rp_jax.sources.synthetic.frame_jobs import (
     EVALUATION_DIR,
     SYNTHETIC_DIR,
@@ -134,6 +139,8 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
         for p in range(spec.positions):
             s = 5.0 + p * spec.spacing_m + float(rng.uniform(-0.5, 0.5))
             vehicle = route.pose_at(s, lateral=wander)
+            velocity = (speed * float(np.cos(vehicle.heading)),
+                        speed * float(np.sin(vehicle.heading)), 0.0)
             when = start + dt.timedelta(seconds=s / speed)
             for k, camera in enumerate(rcs.CAMERAS):
                 R, t = camera_pose(vehicle, MOUNTS[camera])
@@ -149,6 +156,9 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                     keypoints_path=(out_dir / SYNTHETIC_DIR / "keypoints" / condition / camera
                                     / f"{ts}.npz" if is_reference else None),
                     weather=CONDITION_WEATHER[condition],
+                    lighting=photometry.EN_13201.name,
+                    sensor=camera_effects.GRASSHOPPER2_11HZ.name,
+                    velocity=velocity,
                 )
                 jobs.append(job)
                 if is_reference:

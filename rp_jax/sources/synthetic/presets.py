@@ -72,6 +72,7 @@ __all__ = [
     "SYNTHETIC_DIR",
     "WEBCAM_CITIES",
     "WORLD_VERSION",
+    "world_version",
     "FrameJob",
     "Plan",
     "SceneSpec",
@@ -113,6 +114,17 @@ PRESET_NAMES = (
 # 4: parked cars stay with their street's dwell times (``traffic.parked_car``; a new car every
 #    4 hours before) and window glass mirrors the sky (``render._reflect_sky_in_glass``).
 WORLD_VERSION = 4
+# Presets whose pixels moved further than ``WORLD_VERSION`` (the others render as before):
+# 5: robotcar_seasons' nights in physical units (``photometry.EN_13201``) taken by the
+#    RobotCar's Grasshopper2 at 11.1 Hz with its exposure limit and motion blur
+#    (``camera_effects.GRASSHOPPER2_11HZ``).
+_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 5}
+
+
+def world_version(preset: str | None) -> int:
+    """The world version that renders ``preset`` now (``WORLD_VERSION`` unless the preset
+    moved on alone)."""
+    return _PRESET_WORLD_VERSIONS.get(preset, WORLD_VERSION)
 SIZES = ("tiny", "small", "full")
 
 
@@ -128,7 +140,8 @@ def world_marker(root: str | Path, preset: str | None = None) -> dict | None:
     from rp_jax.sources.synthetic import output_folder
 
     marker = output_folder.folder_parameters(Path(root)) or {}
-    if marker.get("world") != WORLD_VERSION or marker.get("preset") not in PRESET_NAMES:
+    if (marker.get("preset") not in PRESET_NAMES
+            or marker.get("world") != world_version(marker.get("preset"))):
         return None
     if preset is not None and marker["preset"] != preset:
         return None
@@ -173,20 +186,24 @@ def default_workers() -> int:
 
 
 def discard_older_world(root: Path, marker: Mapping | None) -> bool:
-    """Delete ``root`` if its generation marker says an older ``WORLD_VERSION`` rendered it.
+    """Delete ``root`` if its generation marker says another world version than the one
+    that renders its preset now (``world_version``) rendered it.
 
     ``marker`` is the parsed marker (``generation.json`` or a partial render's marker; a
     marker without ``"world"`` is version 1), None when there is none. The marker proves the
     folder is this module's own output, so it is removed whole: the renderer skips frames
     whose files exist and would otherwise keep the old pixels. Returns whether it deleted.
     """
-    if marker is None or marker.get("world", 1) == WORLD_VERSION:
+    if marker is None:
+        return False
+    current = world_version(marker.get("preset"))
+    if marker.get("world", 1) == current:
         return False
     log.warning(
         "%s was rendered by synthetic world version %s; rendering version %s",
         root,
         marker.get("world", 1),
-        WORLD_VERSION,
+        current,
     )
     shutil.rmtree(root)
     return True
@@ -238,7 +255,7 @@ def generate(
         raise ValueError(f"workers must be >= 1, got {workers}")
     the_plan = plan(preset, out_dir, size=size, seed=seed)
     parameters = {"generator": output_folder.GENERATOR, "preset": preset, "size": size,
-                  "seed": seed, "world": WORLD_VERSION}
+                  "seed": seed, "world": world_version(preset)}
     if output_folder.claim(out_dir, parameters, overwrite=overwrite):
         for job in the_plan.jobs:  # a folder not ours: no file of it passes for a frame
             for path in job.outputs:

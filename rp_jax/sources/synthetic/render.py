@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic import camera_effects
+from rp_jax.sources.synthetic import camera_effects, photometry
 from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic import textures as tx
 from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState
@@ -53,7 +53,9 @@ FOLIAGE_CLUSTER_M = 0.35
 CLOUD_ALTITUDE = 1500.0
 _CLOUD_M_PER_TEXEL = 12.0
 GLASS_F0 = 0.04  # normal-incidence reflectance of glass, ((n - 1) / (n + 1))^2 with n = 1.5
-LAMP_POWER = 0.25  # street-lamp intensity: about 6e-3 under a lamp, 1/150 of the noon sun
+# Street-lamp intensity of the default lighting: about 6e-3 under a lamp, 1/150 of the noon
+# sun (``photometry.LEGACY``; ``photometry.EN_13201`` states lamps in candelas).
+LAMP_POWER = photometry.LEGACY.lamp_power
 
 
 @dataclasses.dataclass(frozen=True)
@@ -599,7 +601,11 @@ def _sky(cond: condlib.Conditions, dirs: np.ndarray, C: np.ndarray, scene_seed: 
         qy = C[1] + dirs[:, 1] * s + cond.cloud_offset[1]
         dens = _cloud_density(scene_seed, qx, qy, cond.cloud_cover)
         dens = dens * np.clip(dz / 0.08, 0.0, 1.0)
-        lit = cond.sun_rgb * 0.55 + cond.sky_rgb * 1.6 + np.float32([0.003, 0.002, 0.001])
+        # (the last term: the city's lights on the cloud base at night)
+        glow = np.float32([0.003, 0.002, 0.001])
+        if cond.night_glow != 1.0:
+            glow = glow * np.float32(cond.night_glow)
+        lit = cond.sun_rgb * 0.55 + cond.sky_rgb * 1.6 + glow
         under = lit * (0.55 if cond.cloud_cover < 0.8 else 0.9)
         cloud_col = under[None, :] + (lit - under)[None, :] * np.clip(cosang, 0, 1)[:, None] ** 4
         sky = sky * (1 - dens[:, None]) + cloud_col * dens[:, None]
@@ -728,7 +734,15 @@ def _window_threshold(
 
 
 def render(
-    scene: Scene, view: View, when: dt.datetime, *, seed: int = 0, weather: str | None = None
+    scene: Scene,
+    view: View,
+    when: dt.datetime,
+    *,
+    seed: int = 0,
+    weather: str | None = None,
+    lighting: photometry.StreetLighting = photometry.LEGACY,
+    sensor: camera_effects.Sensor = camera_effects.WEBCAM,
+    velocity: np.ndarray | None = None,
 ) -> Frame:
     """Renders the world as a camera records it at an instant.
 
@@ -741,11 +755,16 @@ def render(
         local date (``slow_changes``).
       seed: sensor-noise seed of this frame (nothing else depends on it).
       weather: the day's sky when it is known (``conditions.conditions_at``); None draws it.
+      lighting: the street's lamps, night sky and lit windows (``photometry``).
+      sensor: the camera's exposure and gain range (``camera_effects``).
+      velocity: the camera's velocity (world, m/s) for the motion blur of a sensor whose
+        exposure is modelled; None: still. An undistorted view only.
 
     Returns:
       ``Frame`` with rgb, depth, category and meta.
     """
-    cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when, weather)
+    cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when, weather,
+                                 night_sky=lighting.night_sky)
     state = TextureState(
         season=cond.grass,
         snow=cond.snow,
@@ -765,6 +784,8 @@ def render(
         [scene.buildings, scene.furniture_boxes, np.array(dyn_boxes, np.float64).reshape(-1, 2, 3)]
     )
     distorted = bool(np.any(view.distortion))
+    if distorted and velocity is not None and sensor.max_exposure_s is not None:
+        raise NotImplementedError("motion blur is modelled for undistorted views only")
     if distorted:
         Kc, Wc, Hc, mapx, mapy = _canvas(
             view.K.tobytes(), view.distortion.tobytes(), view.width, view.height
@@ -814,6 +835,7 @@ def render(
         direct_ss = np.take(np.concatenate([direct_q, np.zeros(N + 1)]).astype(np.float32), idx)
     del idx
     emis_ss = None
+    lamp_scale = lighting.lamp_power / photometry.LEGACY.lamp_power
     if cond.lamps_on or cond.sun_elevation_deg < 8:
         qid = gbuf.qid.astype(np.intp)
         aux = gbuf.albedo[..., 3]
@@ -831,9 +853,13 @@ def render(
             )
             lit = fac & (aux >= np.take(thr, np.take(owners, qid)))
             emis_ss[lit] = 0.04 + 0.08 * (aux[lit] - 128) / 127.0
+            window_scale = lighting.window_emission / photometry.LEGACY.window_emission
+            if window_scale != 1.0:
+                emis_ss[lit] *= window_scale
         if cond.lamps_on:
             lamp = mat_px == Material.LAMP
-            emis_ss[lamp] = 2.5 * aux[lamp] / 255.0
+            # A lamp head's luminance follows its intensity (2.5 for the default lamps).
+            emis_ss[lamp] = 2.5 * lamp_scale * aux[lamp] / 255.0
             car = (mat_px == Material.CAR) & (np.take(np.append(quads.emit, 0), qid) > 0)
             emis_ss[car] = 2.5 * aux[car] / 255.0
     # Down to the output resolution (box filter of the 2x render).
@@ -883,7 +909,7 @@ def render(
                 cos = d[0] * Nk[0] + d[1] * Nk[1] + d[2] * Nk[2]
                 np.maximum(cos, 0.0, out=cos)
                 E += cos / (r2 * np.sqrt(r2))
-            light += (LAMP_POWER * E * finite)[..., None] * np.float32([1.0, 0.78, 0.5])
+            light += (lighting.lamp_power * E * finite)[..., None] * np.float32(lighting.lamp_rgb)
     rad = cv2.multiply(alb, light)
     if emis_ss is not None:
         emis = cv2.resize(emis_ss, size, interpolation=cv2.INTER_AREA)
@@ -918,7 +944,12 @@ def render(
     rng = np.random.default_rng(
         [seed & 0xFFFFFFFF, int(when.timestamp() * 1000) & 0xFFFFFFFF, scene.seed & 0xFFFF]
     )
-    rgb, cam_meta = camera_effects.expose(np.ascontiguousarray(rad, np.float32), view.K, rng)
+    motion = None
+    if velocity is not None and sensor.max_exposure_s is not None:
+        motion = camera_effects.motion_field(view.K, R, depth, velocity, sensor.max_exposure_s)
+    rgb, cam_meta = camera_effects.expose(
+        np.ascontiguousarray(rad, np.float32), view.K, rng, sensor, motion
+    )
     meta = cond.as_meta()
     meta.update(cam_meta)
     meta["n_dynamic_quads"] = int(dyn.n)

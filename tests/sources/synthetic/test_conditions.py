@@ -87,3 +87,18 @@ def test_a_documented_sky_overrides_the_drawn_weather():
         assert c.weather == "clear" and c.cloud_cover < 0.1 and c.sun_rgb.sum() > 0
     with pytest.raises(ValueError, match="weather"):
         conditions.conditions_at(0, 40.44, -80.0, when, "snow")
+
+
+
+def test_the_night_sky_sets_the_night_s_ambient_light_and_the_city_glow():
+    night = dt.datetime(2014, 12, 10, 23, 0, tzinfo=dt.UTC)  # Oxford, sun far below
+    default = cond.conditions_at(3, 51.75, -1.26, night)
+    assert default.night_glow == 1.0
+    dim = cond.conditions_at(3, 51.75, -1.26, night, night_sky=cond.NIGHT_SKY / 100)
+    assert abs(dim.night_glow - 0.01) < 1e-9
+    np.testing.assert_allclose(dim.sky_rgb, default.sky_rgb / 100, rtol=1e-3)
+    np.testing.assert_allclose(dim.horizon_rgb, default.horizon_rgb / 100, rtol=1e-2)
+    noon = night.replace(hour=12)  # by day the night sky does not show
+    np.testing.assert_allclose(
+        cond.conditions_at(3, 51.75, -1.26, noon, night_sky=0.0).sky_rgb,
+        cond.conditions_at(3, 51.75, -1.26, noon).sky_rgb, rtol=1e-2)

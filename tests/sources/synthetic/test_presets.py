@@ -564,3 +564,20 @@ def test_world_marker_names_a_world_of_this_version_only(tmp_path):
     for other in ({"world": presets.WORLD_VERSION - 1}, {"preset": "kitti"}, {"seed": "x"}):
         output_folder.mark(tmp_path, {**ours, **other})
         assert presets.world_marker(tmp_path) is None, other
+
+
+def test_a_preset_that_moved_on_alone_has_its_own_world_version(tmp_path):
+    from rp_jax.sources.synthetic import output_folder
+
+    assert presets.world_version("robotcar_seasons") > presets.WORLD_VERSION
+    assert presets.world_version("cmu_seasons") == presets.world_version(None) == \
+        presets.WORLD_VERSION
+    ours = {"preset": "robotcar_seasons", "size": "tiny", "seed": 0,
+            "world": presets.world_version("robotcar_seasons")}
+    output_folder.mark(tmp_path, ours)
+    assert presets.world_marker(tmp_path, "robotcar_seasons") == ours
+    assert not presets.discard_older_world(tmp_path, ours) and tmp_path.is_dir()
+    older = {**ours, "world": presets.WORLD_VERSION}  # the version the others render
+    output_folder.mark(tmp_path, older)
+    assert presets.world_marker(tmp_path) is None
+    assert presets.discard_older_world(tmp_path, older) and not tmp_path.exists()

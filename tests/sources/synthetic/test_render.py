@@ -270,3 +270,38 @@ def test_contact_sheet():
         contact_sheet(imgs, ["a"])
     with pytest.raises(ValueError, match="same size"):
         contact_sheet([imgs[0], imgs[0][:10]], ["a", "b"])
+
+
+def test_motion_of_a_sideways_camera_is_f_v_t_over_depth():
+    from rp_jax.sources.synthetic.camera_effects import motion_field
+
+    K = np.array([[200.0, 0, 32], [0, 200.0, 24], [0, 0, 1]])
+    R = np.eye(3)  # camera axes = world axes: x right, z forward
+    depth = np.full((48, 64), 10.0, np.float32)
+    depth[:, 40:] = np.inf  # the sky does not move
+    m = motion_field(K, R, depth, np.array([5.0, 0.0, 0.0]), 0.09)
+    # the camera moves 0.45 m right: the scene 200 * 0.45 / 10 = 9 px left
+    np.testing.assert_allclose(m[:, :40, 0], -9.0, atol=1e-3)
+    np.testing.assert_allclose(m[:, :40, 1], 0.0, atol=1e-3)
+    assert not m[:, 40:].any()
+
+
+def test_a_moving_camera_s_night_is_blurred_and_a_distorted_one_refused(scene):
+    from rp_jax.sources.synthetic import camera_effects, photometry
+
+    view = _webcam(scene, 160, 120)
+    night = dt.datetime(2024, 1, 9, 23, 0, tzinfo=TZ)
+    kw = dict(seed=3, lighting=photometry.EN_13201, sensor=camera_effects.GRASSHOPPER2_11HZ)
+    still = render(scene, view, night, **kw)
+    moving = render(scene, view, night, velocity=np.array([12.0, 0.0, 0.0]), **kw)
+    longest = camera_effects.GRASSHOPPER2_11HZ.max_exposure_s
+    assert still.meta["exposure_s"] == pytest.approx(longest)
+
+    def across_over_along(rgb):  # the street runs along the image's x: blur takes x detail
+        g = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32), (0, 0), 1)
+        return (np.diff(g, axis=1) ** 2).mean() / (np.diff(g, axis=0) ** 2).mean()
+
+    assert across_over_along(moving.rgb) < 0.8 * across_over_along(still.rgb)
+    bent = _webcam(scene, 160, 120, distortion=np.array([-0.2, 0.05, 0.0, 0.0]))
+    with pytest.raises(NotImplementedError, match="undistorted"):
+        render(scene, bent, night, velocity=np.array([1.0, 0.0, 0.0]), **kw)
