@@ -112,7 +112,7 @@ PRESET_NAMES = (
 #    lawn paths and flat roofs textured with real photographs of brick, grass and gravel
 #    (``photo_textures``, from scikit-image; windows, signs and snow where they were).
 # 4: parked cars stay with their street's dwell times (``traffic.parked_car``; a new car every
-#    4 hours before) and window glass mirrors the sky (``render._reflect_sky_in_glass``).
+#    4 hours before) and window glass mirrors the sky (``sky.reflect_sky_in_glass``).
 WORLD_VERSION = 4
 # Presets whose pixels moved further than ``WORLD_VERSION`` (the others render as before):
 # 5: robotcar_seasons' nights in physical units (``photometry.EN_13201``) taken by the
