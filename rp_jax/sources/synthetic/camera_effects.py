@@ -100,7 +100,7 @@ def sensor_named(name: str | None) -> Sensor:
 
 
 def motion_field(K: np.ndarray, R: np.ndarray, depth: np.ndarray, velocity: np.ndarray,
-            seconds: float) -> np.ndarray:
+                 seconds: float) -> np.ndarray:
     """The image displacement (H, W, 2) of the static scene while a camera moving at
     ``velocity`` (world, m/s) exposes for ``seconds``, centred on the frame's instant (the
     camera moves by ``velocity * seconds``; points at infinity do not move)."""

@@ -23,7 +23,7 @@ candelas and converts them to those units:
 
 ``LEGACY`` is the calibration the other presets' nights were made with (the values the
 renderer held before this module, in its own units): lamps 30 times and the night sky 250
-times brighter than these figures, lit windows about 25 times. Those presets keep it so that
+times brighter than these figures, lit windows about 75 times. Those presets keep it so that
 their committed results still reproduce; ``EN_13201`` is the physical one, used where the
 night matters (the ``robotcar_seasons`` preset).
 """

@@ -125,6 +125,8 @@ def world_version(preset: str | None) -> int:
     """The world version that renders ``preset`` now (``WORLD_VERSION`` unless the preset
     moved on alone)."""
     return _PRESET_WORLD_VERSIONS.get(preset, WORLD_VERSION)
+
+
 SIZES = ("tiny", "small", "full")
 
 
