@@ -51,6 +51,7 @@ __all__ = [
     "replace_blocks",
     "sec4a_headline",
     "sec4a_seed_table",
+    "universal_rp_tables",
     "update",
 ]
 
@@ -64,6 +65,7 @@ MAPSUM_UNSEEN = RESULTS / "map_summarization_unseen_seeds" / "metrics.json"
 MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.json"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
+UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
 
 # The baselines of Sec. IV-A in the order the paper's discussion takes them; names as
@@ -459,6 +461,19 @@ def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTIO
             f"{metrics['seeds']}. Run: {run_caption(metrics)}.\n")
 
 
+def universal_rp_tables(metrics: Mapping | None, path: Path = UNIVERSAL_RP) -> str:
+    """The many-worlds run's tables (``experiments.universal_rp.report.tables_markdown``)."""
+    if metrics is None:
+        return f"_No many-worlds result is committed yet (`{path.as_posix()}`)._\n"
+    from experiments.universal_rp import report
+
+    try:
+        body = report.tables_markdown(metrics).rstrip("\n") + "\n"
+    except (KeyError, IndexError, TypeError) as e:
+        raise ValueError(f"{path}: not the layout this table reads ({e!r})") from e
+    return body + f"\nRun: {run_caption(metrics)}.\n"
+
+
 # ----------------------------------------------------------------------------- the blocks
 
 def _sec4a(dataset: str) -> Callable[[Path], str]:
@@ -489,6 +504,7 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM_CONDITIONS)),
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
+    "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),
 }
 
 

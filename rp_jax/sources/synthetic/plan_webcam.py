@@ -210,7 +210,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
         out_dir,
         size,
         seed,
-        spec.scenes,
+        webcam_sites(seed, spec.scenes),
         spec.width,
         spec.height,
         days_of=lambda i: webcam_days(i, spec.days, seed),
@@ -218,33 +218,40 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
     )
 
 
-def _plan(
-    preset: str,
-    out_dir: Path,
-    size: str,
-    seed: int,
-    num_scenes: int,
-    width: int,
-    height: int,
-    *,
-    days_of: Callable[[int], list[dt.date]],
-    times_of: Callable[[dt.date, zoneinfo.ZoneInfo, np.random.Generator], list[dt.datetime]],
-    extra: tuple = (),
-) -> Plan:
-    """The frames of a Webcam Clip Art layout: scene i's webcam on the days ``days_of(i)``
-    at the instants ``times_of(day, zone, rng)``, its world built with ``extra``."""
+@dataclasses.dataclass(frozen=True)
+class WebcamSite:
+    """One webcam of a Webcam Clip Art layout: its folder, city and street.
+
+    Attributes:
+      name: the scene folder (``scene_00``...).
+      index: the scene's index in the world's random streams (camera, days, frames).
+      city, latitude, longitude, timezone: where it hangs (degrees; an IANA zone).
+      facade_azimuth: the watched facade's normal, degrees clockwise from north.
+      scene: the street it watches.
+    """
+
+    name: str
+    index: int
+    city: str
+    latitude: float
+    longitude: float
+    timezone: str
+    facade_azimuth: float
+    scene: SceneSpec
+
+
+def webcam_sites(seed: int, num_scenes: int, extra: tuple = ()) -> list[WebcamSite]:
+    """The webcams of ``webcam_clipart`` (and of the years presets, built with ``extra``):
+    ``WEBCAM_CITIES`` in order, the spec's scene names; fewer than 8 keep the first
+    ``num_scenes - 1`` and the test scene, so that a tiny run has both splits."""
     splits = load_spec("webcam_clipart")["splits"]["synthetic"]
     names = splits["train"] + splits["test"]
     chosen = list(range(len(names)))
     if num_scenes < len(names):
-        # Keep one train and the test scene so both splits exist in a tiny run.
         chosen = list(range(num_scenes - 1)) + [len(names) - 1]
-    jobs: list[FrameJob] = []
-    sidecars: list[tuple[Path, dict]] = []
+    sites = []
     for i in chosen:
-        name = names[i]
         city, lat, lon, tz_name, facade_azimuth = WEBCAM_CITIES[i]
-        tz = zoneinfo.ZoneInfo(tz_name)
         scene_spec = SceneSpec(
             seed=int(seeded_rng(seed, 2, i).integers(0, 2**31 - 1)),
             kind="street",
@@ -254,9 +261,33 @@ def _plan(
             vegetation=float(seeded_rng(seed, 3, i).uniform(0.2, 0.7)),
             extra=extra,
         )
+        sites.append(WebcamSite(names[i], i, city, lat, lon, tz_name, facade_azimuth,
+                                scene_spec))
+    return sites
+
+
+def _plan(
+    preset: str,
+    out_dir: Path,
+    size: str,
+    seed: int,
+    sites: list[WebcamSite],
+    width: int,
+    height: int,
+    *,
+    days_of: Callable[[int], list[dt.date]],
+    times_of: Callable[[dt.date, zoneinfo.ZoneInfo, np.random.Generator], list[dt.datetime]],
+) -> Plan:
+    """The frames of a Webcam Clip Art layout: each site's webcam on the days
+    ``days_of(site.index)`` at the instants ``times_of(day, zone, rng)``."""
+    jobs: list[FrameJob] = []
+    sidecars: list[tuple[Path, dict]] = []
+    for site in sites:
+        i, name, scene_spec = site.index, site.name, site.scene
+        tz = zoneinfo.ZoneInfo(site.timezone)
         rng = seeded_rng(seed, 4, i)
         scene = frame_jobs.scene_of(scene_spec)
-        K, R0, t0 = _webcam_camera(scene, facade_azimuth, rng, width, height)
+        K, R0, t0 = _webcam_camera(scene, site.facade_azimuth, rng, width, height)
         C = -R0.T @ t0
         scene_dir = out_dir / name
         days = days_of(i)
@@ -287,13 +318,13 @@ def _plan(
             (
                 scene_dir,
                 {
-                    "timezone": tz_name,
+                    "timezone": site.timezone,
                     "name_timezone": write_layout.WEBCAM_NAME_TIMEZONE,
-                    "latitude": lat,
-                    "longitude": lon,
+                    "latitude": site.latitude,
+                    "longitude": site.longitude,
                     "synthetic": {
-                        "city": city,
-                        "facade_azimuth_deg": facade_azimuth,
+                        "city": site.city,
+                        "facade_azimuth_deg": site.facade_azimuth,
                         "days": [d.isoformat() for d in days],
                         "scene": dataclasses.asdict(scene_spec),
                         "seed": seed,
@@ -390,10 +421,9 @@ def plan_years(
         out_dir,
         size,
         seed,
-        spec.scenes,
+        webcam_sites(seed, spec.scenes, extra),
         spec.width,
         spec.height,
         days_of=lambda i: years_days(i, spec.days_per_year, seed),
         times_of=lambda day, tz, rng: _years_times(day, tz, spec.slots, rng),
-        extra=extra,
     )

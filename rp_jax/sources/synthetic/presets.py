@@ -14,7 +14,9 @@ the paper, ``webcam_years`` (``plan_webcam.plan_years``: the webcams on the same
 six years, the world's slow changes on, ``slow_changes``) and ``webcam_years_frozen`` (the
 same frames without them), for the long-term decay of issue 17, and ``robotcar_seasons``
 (``plan_robotcar_seasons``: RobotCar Seasons' overcast reference traversal and its nine
-query conditions, three cameras, in the release's layout). They
+query conditions, three cameras, in the release's layout), and ``webcam_worlds`` /
+``webcam_worlds_unseen`` (``plan_worlds``: the Webcam layout with every webcam in a city and
+street of its own, for an RP trained on many worlds and judged on held-out ones). They
 share the frame jobs and their rendering (``frame_jobs``). This module names the presets
 and renders one (``plan``, ``generate``); the presets' public names stay importable from it.
 
@@ -38,6 +40,7 @@ from rp_jax.sources.synthetic import (
     plan_robotcar,
     plan_robotcar_seasons,
     plan_webcam,
+    plan_worlds,
     write_layout,
 )
 from rp_jax.sources.synthetic.frame_jobs import (
@@ -100,6 +103,8 @@ PRESET_NAMES = (
     "webcam_years",
     "webcam_years_frozen",
     "robotcar_seasons",
+    "webcam_worlds",
+    "webcam_worlds_unseen",
 )
 # Bumped whenever the same (preset, size, seed) renders different pixels or file names; a
 # layout rendered by another version is rendered again
@@ -163,6 +168,9 @@ _PLANNERS = {
     "webcam_years_frozen": functools.partial(plan_webcam.plan_years, slow_changes=False),
     # Beyond the paper: RobotCar Seasons' reference and nine conditions (dawn to snow).
     "robotcar_seasons": plan_robotcar_seasons.plan,
+    # Beyond the paper: many worlds for a "universal" RP, and held-out worlds to judge it.
+    "webcam_worlds": plan_worlds.plan,
+    "webcam_worlds_unseen": plan_worlds.plan_unseen,
 }
 
 
