@@ -8,10 +8,11 @@ import pytest
 from experiments import ship_models
 from rp_jax import predict, shipped
 
-EXPECTED = ["cmu_seasons-synthetic", "robotcar-synthetic", "webcam_clipart-synthetic"]
+EXPECTED = ["cmu_seasons-synthetic", "robotcar-synthetic", "webcam_clipart-synthetic",
+            "webcam_worlds-synthetic"]
 
 
-def test_the_three_synthetic_models_are_shipped_within_10_mb():
+def test_the_four_synthetic_models_are_shipped_within_10_mb():
     present = shipped.names()
     assert present == EXPECTED
     size = sum(p.stat().st_size for p in shipped.MODELS_DIR.rglob("*") if p.is_file())
