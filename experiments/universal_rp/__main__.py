@@ -31,6 +31,10 @@ def main(argv=None) -> int:
         print(f"{prog}: error: --manual-dir: this experiment renders its own worlds",
               file=sys.stderr)
         return 2
+    if args.data_dir is not None:
+        print(f"{prog}: error: --data-dir: each world's dataset is built under --worlds-dir "
+              "(DIR/worlds_tfds/<world>)", file=sys.stderr)
+        return 2
     from rp_jax import platform, progress, train, workdir_lock
 
     if args.quiet:

@@ -172,6 +172,12 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         data_root = loading.default_data_dir().parent
     data_root = Path(data_root).absolute()
     timings: dict[str, float] = {}
+    from rp_jax.sources.synthetic.plan_worlds import webcams_per_world
+
+    available = len(u.train_seeds) * webcams_per_world(u.train_preset, u.size)
+    if max(u.curve) > available:  # before hours of rendering and labelling
+        raise ValueError(f"config.universal.curve asks for {max(u.curve)} training webcams; "
+                         f"the training worlds {tuple(u.train_seeds)} hold {available}")
 
     t0 = time.perf_counter()
     train_worlds = [world_columns(u.train_preset, s, u.size, data_root, workers=workers,
@@ -183,9 +189,9 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         for s in u.unseen_seeds}
     timings["worlds_s"] = time.perf_counter() - t0
     order = curve_order(train_all["viewpoint"], u.order_seed)
-    if max(u.curve) > len(order):
+    if max(u.curve) > len(order):  # a webcam the reader kept no record of
         raise ValueError(f"config.universal.curve asks for {max(u.curve)} training webcams; "
-                         f"the training worlds {tuple(u.train_seeds)} hold {len(order)}")
+                         f"the training worlds' records hold {len(order)}")
 
     curve = []
     for n in u.curve:

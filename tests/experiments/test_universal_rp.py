@@ -69,12 +69,11 @@ def test_the_report_has_the_curve_every_world_and_the_shipped_model(tmp_path):
     assert out.stat().st_size > 10_000
 
 
-def test_a_curve_larger_than_the_training_worlds_is_refused_before_training(tmp_path,
+def test_a_curve_larger_than_the_training_worlds_is_refused_before_any_world(tmp_path,
                                                                            monkeypatch):
     config = urp_config.get_config("tiny")
     config.universal.curve = (1, 99)
-    columns = {"viewpoint": np.array(["w/scene_00", "w/scene_01"]), "label": np.zeros((2, 21))}
-    monkeypatch.setattr(experiment, "world_columns", lambda *a, **k: dict(columns))
+    monkeypatch.setattr(experiment, "world_columns", lambda *a, **k: pytest.fail("built"))
     monkeypatch.setattr(experiment, "_train_point", lambda *a, **k: pytest.fail("trained"))
     with pytest.raises(ValueError, match="asks for 99 training webcams"):
         experiment.run(config, tmp_path / "run", data_root=tmp_path / "data")
@@ -137,3 +136,15 @@ def test_the_photographs_score_by_category_with_the_difference_by_hand(monkeypat
     assert r["transient_minus_static"] == pytest.approx((0.2 + 0.5) / 2 - 0.2)
     installed = photographs.photograph_paths()
     assert all(installed[c] for c in photographs.CATEGORIES)  # every category has a photo
+
+
+@pytest.mark.parametrize("flag", ["--manual-dir", "--data-dir"])
+def test_the_flags_of_other_experiments_are_refused_in_one_line(flag, tmp_path, capsys):
+    from experiments.universal_rp.__main__ import main
+
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "x.jpg").write_bytes(b"")
+    assert main([flag, str(tmp_path / "d"), "--workdir", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("python -m experiments.universal_rp: error: --")
+    assert not (tmp_path / "run").exists()

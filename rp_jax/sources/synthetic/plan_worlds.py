@@ -33,8 +33,8 @@ from rp_jax.sources.synthetic.plan_webcam import (
     webcam_times,
 )
 
-__all__ = ["UNSEEN_CITIES", "WORLD_CITIES", "plan", "plan_unseen", "world_days",
-           "world_sites"]
+__all__ = ["UNSEEN_CITIES", "WORLD_CITIES", "plan", "plan_unseen", "webcams_per_world",
+           "world_days", "world_sites"]
 
 # (city, latitude, longitude, time zone): the training pool, from the equator to 61 deg
 # and both hemispheres (seasons flip south of it, ``conditions.season_of_day``).
@@ -139,13 +139,18 @@ def _plan_worlds(preset: str, out_dir: Path, size: str, seed: int, num_scenes: i
     )
 
 
+def webcams_per_world(preset: str, size: str) -> int:
+    """How many webcams one world of ``preset`` holds at ``size`` (nothing rendered)."""
+    return _UNSEEN_SCENES[size] if preset == "webcam_worlds_unseen" else _SIZES[size].scenes
+
+
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
     """The frames of ``webcam_worlds``: one training world of ``WORLD_CITIES``."""
-    return _plan_worlds("webcam_worlds", out_dir, size, seed, _SIZES[size].scenes,
-                        WORLD_CITIES)
+    return _plan_worlds("webcam_worlds", out_dir, size, seed,
+                        webcams_per_world("webcam_worlds", size), WORLD_CITIES)
 
 
 def plan_unseen(out_dir: Path, size: str, seed: int) -> Plan:
     """The frames of ``webcam_worlds_unseen``: one held-out world of ``UNSEEN_CITIES``."""
-    return _plan_worlds("webcam_worlds_unseen", out_dir, size, seed, _UNSEEN_SCENES[size],
-                        UNSEEN_CITIES)
+    return _plan_worlds("webcam_worlds_unseen", out_dir, size, seed,
+                        webcams_per_world("webcam_worlds_unseen", size), UNSEEN_CITIES)

@@ -71,6 +71,8 @@ def test_the_held_out_preset_draws_only_held_out_cities():
     assert {_city(j) for j in train.jobs} <= {(c[1], c[2]) for c in plan_worlds.WORLD_CITIES}
     assert len({j.image_path.parent.name for j in train.jobs}) == 8
     assert len(train.jobs) == 8 * 4 * (21 + 3)  # M = 4 days of 21 slots and 3 off-slot frames
+    assert plan_worlds.webcams_per_world("webcam_worlds", "full") == 8
+    assert plan_worlds.webcams_per_world("webcam_worlds_unseen", "full") == 4
 
 
 def test_a_tiny_world_is_read_by_the_webcam_clip_art_reader(tmp_path):
