@@ -36,7 +36,8 @@ import numpy as np
 from rp_jax import categories
 from rp_jax.sources.synthetic import camera_effects, photometry, sky
 from rp_jax.sources.synthetic import conditions as condlib
-from rp_jax.sources.synthetic.scene import Material, QuadSet, Scene, TextureState
+from rp_jax.sources.synthetic.quads import Material, QuadSet, TextureState
+from rp_jax.sources.synthetic.scene import Scene
 from rp_jax.sources.synthetic.traffic import dynamic_quads
 
 __all__ = ["View", "Frame", "render", "project", "look_at"]

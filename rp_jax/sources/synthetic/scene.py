@@ -12,296 +12,43 @@ centreline is the x axis; the street runs from ``x = 0`` to ``x = length_m`` and
 extends ``MARGIN_M`` beyond both ends (with a closing building across the street there).
 Right-hand traffic: the eastbound lane is at ``y < 0``, westbound at ``y > 0``.
 
-Every surface is a *quad*: ``origin`` (top-left corner of its texture), ``u`` (texture
-columns, to the right as seen from the front) and ``v`` (texture rows, downwards). A point
-of texture coordinate (a, b) in [0, 1]^2 lies at ``origin + a u + b v`` and the outward
-normal is ``unit(v x u)``. Everything is deterministic from ``(seed, kwargs)``. What moves (parked
+Every surface is a textured *quad* (``quads``: materials, quads, the texture cache).
+Everything is deterministic from ``(seed, kwargs)``. What moves (parked
 cars with the street's dwell times, passing cars, people) is placed per capture instant by
 ``rp_jax.sources.synthetic.traffic``.
 
-Why this module is near 800 lines: ``build_scene`` is one 380-line recipe whose random draws,
-in their order, *are* the world (every facade, tree and slot of a seed). Cutting it into
-helpers that draw from the same generator would be easy to get subtly wrong and would move
-every rendered pixel of every dataset; it stays whole, with the small geometry types it
-builds above it.
+Why ``build_scene`` is one 380-line recipe: its random draws, in their order, *are* the world
+(every facade, tree and slot of a seed). Cutting it into helpers that draw from the same
+generator would be easy to get subtly wrong and would move every rendered pixel of every
+dataset; it stays whole, and the geometry types it builds live in ``quads``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import enum
-from collections import OrderedDict
-from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rp_jax import categories
 from rp_jax.sources.synthetic import ground_textures as gt
-from rp_jax.sources.synthetic import object_textures as ot
+from rp_jax.sources.synthetic import slow_changes as slow_changes_lib
 from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.quads import (
+    Material,
+    QuadBuilder,
+    QuadSet,
+    TextureCache,
+    box_quads,
+    plain_tex,
+    sign_tex,
+    tree_tex,
+)
+from rp_jax.sources.synthetic.slow_changes import SlowChanges, SlowWorld
 
-if TYPE_CHECKING:
-    from rp_jax.sources.synthetic.slow_changes import SlowChanges, SlowWorld
-
-__all__ = [
-    "Material",
-    "QuadSet",
-    "Scene",
-    "TextureState",
-    "build_scene",
-    "box_quads",
-    "MARGIN_M",
-    "QuadBuilder",
-    "TextureCache",
-]
+__all__ = ["MARGIN_M", "Scene", "build_scene"]
 
 MARGIN_M = 40.0  # world beyond each end of the street
 GROUND_TILE_M = 10.0
-
-
-class Material(enum.IntEnum):
-    """How the renderer reads a quad's aux channel and lights it."""
-
-    WALL = 0  # opaque, aux unused
-    FACADE = 1  # aux: window id (glass), lit at night per window
-    GROUND = 2  # aux: snow susceptibility; wet when it rains
-    ROOF = 3  # aux: snow susceptibility
-    FOLIAGE = 4  # aux: alpha; translucent lighting, two-sided
-    CUTOUT = 5  # aux: alpha (people), two-sided
-    LAMP = 6  # aux: emission, on at night
-    CAR = 7  # aux: emission of head/tail lights (moving cars at dusk/night)
-
-
-@dataclasses.dataclass(frozen=True)
-class TextureState:
-    """The per-capture state that changes textures: season and snow (from ``conditions``)."""
-
-    season: int = 1  # grass colour: 0 winter, 1 spring/summer, 2 late summer, 3 autumn
-    snow: int = 0  # 0..4
-    snow_pattern: int = 0  # the snow pack's pattern id (``conditions.snow_state``), 0 without snow
-    foliage: float = 1.0  # quantised leaf density
-    autumn: float = 0.0  # quantised autumn colour
-
-
-@dataclasses.dataclass
-class QuadSet:
-    """Structure-of-arrays of quads (N of them)."""
-
-    origin: np.ndarray  # (N, 3)
-    u: np.ndarray  # (N, 3)
-    v: np.ndarray  # (N, 3)
-    tex: list  # N texture keys
-    category: np.ndarray  # (N,) uint8
-    material: np.ndarray  # (N,) int8
-    receiver: np.ndarray  # (N,) int32 plane id receiving exact cast shadows, -1: object-level
-    shadow_pt: np.ndarray  # (N, 3) point tested for object-level shadow
-    owner: np.ndarray  # (N,) int32 building id (window lighting) or object id
-    emit: np.ndarray  # (N,) float32 emission switch class: 0 none, 1 lamp, 2 moving-car light
-
-    @property
-    def n(self) -> int:
-        return len(self.tex)
-
-    @property
-    def normal(self) -> np.ndarray:
-        nrm = np.cross(self.v, self.u)
-        return nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
-
-    @staticmethod
-    def empty() -> QuadSet:
-        z3 = np.zeros((0, 3))
-        return QuadSet(
-            z3,
-            z3,
-            z3,
-            [],
-            np.zeros(0, np.uint8),
-            np.zeros(0, np.int8),
-            np.zeros(0, np.int32),
-            z3,
-            np.zeros(0, np.int32),
-            np.zeros(0, np.float32),
-        )
-
-    @staticmethod
-    def concat(sets: list[QuadSet]) -> QuadSet:
-        sets = [s for s in sets if s.n]
-        if not sets:
-            return QuadSet.empty()
-        return QuadSet(
-            *(
-                np.concatenate([getattr(s, f) for s in sets])
-                if f != "tex"
-                else sum((s.tex for s in sets), [])
-                for f in (
-                    "origin",
-                    "u",
-                    "v",
-                    "tex",
-                    "category",
-                    "material",
-                    "receiver",
-                    "shadow_pt",
-                    "owner",
-                    "emit",
-                )
-            )
-        )
-
-
-class QuadBuilder:
-    def __init__(self):
-        self.rows = []
-
-    def add(
-        self, origin, u, v, tex, category, material, receiver=-1, shadow_pt=None, owner=-1, emit=0.0
-    ):
-        origin, u, v = (np.asarray(a, np.float64) for a in (origin, u, v))
-        sp = origin + 0.5 * u + 0.5 * v if shadow_pt is None else np.asarray(shadow_pt, np.float64)
-        self.rows.append((origin, u, v, tex, category, material, receiver, sp, owner, emit))
-
-    def build(self) -> QuadSet:
-        if not self.rows:
-            return QuadSet.empty()
-        cols = list(zip(*self.rows))
-        return QuadSet(
-            np.array(cols[0]),
-            np.array(cols[1]),
-            np.array(cols[2]),
-            list(cols[3]),
-            np.array(cols[4], np.uint8),
-            np.array(cols[5], np.int8),
-            np.array(cols[6], np.int32),
-            np.array(cols[7]),
-            np.array(cols[8], np.int32),
-            np.array(cols[9], np.float32),
-        )
-
-
-_FACE_NORMAL = {
-    "+x": np.array([1.0, 0, 0]),
-    "-x": np.array([-1.0, 0, 0]),
-    "+y": np.array([0, 1.0, 0]),
-    "-y": np.array([0, -1.0, 0]),
-    "+z": np.array([0, 0, 1.0]),
-}
-
-
-def box_quads(
-    qb: QuadBuilder,
-    lo,
-    hi,
-    tex: dict,
-    category: int,
-    material: int = Material.WALL,
-    receivers: dict | None = None,
-    owner: int = -1,
-    emit: dict | None = None,
-    faces=("+x", "-x", "+y", "-y", "+z"),
-) -> None:
-    """Adds the outward faces of an axis-aligned box [lo, hi] (no bottom face).
-
-    Args:
-      qb: the builder.
-      lo, hi: box corners.
-      tex: texture key per face name (``"+x"``, ``"-x"``, ``"+y"``, ``"-y"``, ``"+z"``), or
-        ``"*"`` for all.
-      category: category id of every face.
-      material: material of every face (``"+z"`` faces of buildings are given ROOF by callers).
-      receivers: optional plane id per face (exact cast shadows).
-      owner: building / object id.
-      emit: optional emission class per face.
-      faces: which faces to add.
-    """
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
-    geo = {
-        "+x": ((x1, y0, z1), (0, dy, 0), (0, 0, -dz)),
-        "-x": ((x0, y1, z1), (0, -dy, 0), (0, 0, -dz)),
-        "+y": ((x1, y1, z1), (-dx, 0, 0), (0, 0, -dz)),
-        "-y": ((x0, y0, z1), (dx, 0, 0), (0, 0, -dz)),
-        "+z": ((x0, y1, z1), (dx, 0, 0), (0, -dy, 0)),
-    }
-    receivers = receivers or {}
-    emit = emit or {}
-    for f in faces:
-        o, u, v = geo[f]
-        key = tex.get(f, tex.get("*"))
-        mat = (
-            material
-            if not (
-                f == "+z"
-                and material in (Material.FACADE, Material.WALL)
-                and category == categories.BUILDING
-            )
-            else Material.ROOF
-        )
-        o, u, v = (np.asarray(a, np.float64) for a in (o, u, v))
-        sp = o + 0.5 * u + 0.5 * v + 0.05 * _FACE_NORMAL[f]  # just outside the face
-        qb.add(o, u, v, key, category, mat, receivers.get(f, -1), sp, owner, emit.get(f, 0.0))
-
-
-# ---------------------------------------------------------------- texture cache
-
-
-class TextureCache:
-    """Lazily generated textures with their mip pyramids, bounded by bytes (LRU)."""
-
-    def __init__(self, max_bytes: int = 600 << 20):
-        self.specs: dict[str, tuple[Callable, dict, tuple]] = {}
-        self._cache: OrderedDict = OrderedDict()
-        self._bytes = 0
-        self.max_bytes = max_bytes
-        # Car templates built from this cache's textures, keyed (variant, direction, moving);
-        # they live and die with the cache (a global keyed by id() outlived it).
-        self.car_templates: dict = {}
-
-    def register(self, key: str, fn: Callable, kwargs: dict, depends: tuple = ()) -> None:
-        """Declares texture ``key`` = ``fn(**kwargs, **state parts named in depends)``."""
-        if key not in self.specs:
-            self.specs[key] = (fn, kwargs, depends)
-
-    def pyramid(self, key: str, state: TextureState) -> list[np.ndarray]:
-        """Mip pyramid of texture ``key`` for a texture state (generated on first use)."""
-        fn, kwargs, depends = self.specs[key]
-        parts = tuple(getattr(state, d) for d in depends)
-        ck = (key, parts)
-        hit = self._cache.get(ck)
-        if hit is not None:
-            self._cache.move_to_end(ck)
-            return hit
-        tex = fn(**kwargs, **dict(zip(depends, parts)))
-        pyr = tx.mip_pyramid(tex)
-        nbytes = sum(p.nbytes for p in pyr)
-        self._cache[ck] = pyr
-        self._bytes += nbytes
-        while self._bytes > self.max_bytes and len(self._cache) > 1:
-            _, old = self._cache.popitem(last=False)
-            self._bytes -= sum(p.nbytes for p in old)
-        return pyr
-
-
-def _tree_tex(
-    structure_seed: int,
-    height: float,
-    radius: float,
-    foliage: float,
-    autumn: float,
-    snow: int,
-    _memo: dict = {},  # noqa: B006 - a deliberate process-wide memo
-) -> np.ndarray:
-    key = (structure_seed, height, radius)
-    if key not in _memo:
-        _memo[key] = ot.tree_structure(structure_seed, height, radius)
-    return ot.tree_texture(_memo[key], foliage, autumn, snow)
-
-
-def _plain(
-    seed: int, colour, w: int = 16, h: int = 64, aux: int = 0, bands: int = 0, snow: int = 0
-):
-    del snow
-    return ot.plain_texture(seed, colour, w, h, aux, bands)
 
 
 # ---------------------------------------------------------------- the scene
@@ -380,7 +127,7 @@ def _add_tree(
     key = f"tree:{tseed}:{height:.2f}:{radius:.2f}"
     tc.register(
         key,
-        _tree_tex,
+        tree_tex,
         dict(structure_seed=tseed, height=height, radius=radius),
         depends=("foliage", "autumn", "snow"),
     )
@@ -687,10 +434,10 @@ def build_scene(
     # Street furniture: lamps, sign posts, bins, hydrants.
     furniture = []
     lamps = []
-    tc.register("pole", _plain, dict(seed=3, colour=(0.22, 0.24, 0.23), w=16, h=256, bands=2))
-    tc.register("lamp_head", _plain, dict(seed=4, colour=(0.85, 0.82, 0.7), w=32, h=16, aux=255))
-    tc.register("bin", _plain, dict(seed=5, colour=(0.12, 0.25, 0.15), w=32, h=48, bands=3))
-    tc.register("hydrant", _plain, dict(seed=6, colour=(0.75, 0.15, 0.1), w=16, h=32, bands=1))
+    tc.register("pole", plain_tex, dict(seed=3, colour=(0.22, 0.24, 0.23), w=16, h=256, bands=2))
+    tc.register("lamp_head", plain_tex, dict(seed=4, colour=(0.85, 0.82, 0.7), w=32, h=16, aux=255))
+    tc.register("bin", plain_tex, dict(seed=5, colour=(0.12, 0.25, 0.15), w=32, h=48, bands=3))
+    tc.register("hydrant", plain_tex, dict(seed=6, colour=(0.75, 0.15, 0.1), w=16, h=32, bands=1))
     lamp_step = rng.uniform(22, 32)
     for k, x in enumerate(np.arange(x_lo + rng.uniform(0, lamp_step), x_hi, lamp_step)):
         sgn = -1.0 if k % 2 == 0 else 1.0
@@ -723,7 +470,7 @@ def build_scene(
             box_quads(qb, lo, hi, {"*": "pole"}, categories.OTHER, owner=obj)
             furniture.append((lo, hi))
             key = f"sign:{seed}:{k}"
-            tc.register(key, _sign_tex, dict(seed=int(seed * 31 + k)))
+            tc.register(key, sign_tex, dict(seed=int(seed * 31 + k)))
             sw, sh = rng.uniform(0.45, 0.8), rng.uniform(0.45, 0.8)
             face = -sgn  # facing the road
             if face > 0:
@@ -772,9 +519,8 @@ def build_scene(
     static = qb.build()
     slow_world = None
     if slow_changes is not None:
-        from rp_jax.sources.synthetic.slow_changes import index_world  # (imports this module)
 
-        slow_world = index_world(seed, static, tc, slow_changes)
+        slow_world = slow_changes_lib.index_world(seed, static, tc, slow_changes)
     return Scene(
         seed=seed,
         kind=kind,
@@ -803,12 +549,3 @@ def build_scene(
         n_planes=plane[0],
         slow_changes=slow_world,
     )
-
-
-def _sign_tex(seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    rgb = tx.sign_texture(rng, 64, 64)
-    import cv2  # local: only the sign border needs it
-
-    cv2.rectangle(rgb, (1, 1), (62, 62), (0.95, 0.95, 0.95), 2)
-    return tx.finish(rgb, np.zeros((64, 64), np.uint8), blur=0.5)

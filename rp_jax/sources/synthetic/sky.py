@@ -16,7 +16,7 @@ import numpy as np
 
 from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic import textures as tx
-from rp_jax.sources.synthetic.scene import Material, QuadSet
+from rp_jax.sources.synthetic.quads import Material, QuadSet
 
 __all__ = ["CLOUD_ALTITUDE", "GLASS_F0", "cloud_density", "cloud_texture",
            "reflect_sky_in_glass", "sky_radiance"]

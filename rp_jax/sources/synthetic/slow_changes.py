@@ -42,7 +42,7 @@ import datetime as dt
 
 import numpy as np
 
-from rp_jax.sources.synthetic.scene import Material, QuadSet, TextureCache, _sign_tex, _tree_tex
+from rp_jax.sources.synthetic.quads import Material, QuadSet, TextureCache, sign_tex, tree_tex
 
 __all__ = [
     "DAYS_PER_YEAR",
@@ -251,7 +251,7 @@ class SlowWorld:
             key = f"tree:{tseed}:{h0:.2f}:{r0:.2f}"
             self.textures.register(
                 key,
-                _tree_tex,
+                tree_tex,
                 dict(structure_seed=tseed, height=h0, radius=r0),
                 depends=("foliage", "autumn", "snow"),
             )
@@ -291,7 +291,7 @@ class SlowWorld:
             if n:
                 key = f"{g.key}~{n}"
                 self.textures.register(
-                    key, _sign_tex, dict(seed=_seed_of(self.seed, "sign", g.element, n))
+                    key, sign_tex, dict(seed=_seed_of(self.seed, "sign", g.element, n))
                 )
                 tex[g.quad] = key
         for t in self.trees:

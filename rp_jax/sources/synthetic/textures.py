@@ -12,7 +12,7 @@ take their material from real photographs of brick, grass and gravel
 and snow; the procedural materials are the fallback.
 
 Every function returns an RGBA ``uint8`` array ``(H, W, 4)``: RGB albedo in sRGB and a
-fourth *aux* channel whose meaning depends on the material (see ``scene.Material``):
+fourth *aux* channel whose meaning depends on the material (see ``quads.Material``):
 window ids on facades, snow susceptibility on ground and roofs, alpha on cut-out objects
 (trees, people), emission on lamps and car lights. Sizes are multiples of 16 so that the
 mip pyramid (``mip_pyramid``) keeps texel centres exactly aligned.

@@ -18,14 +18,14 @@ import numpy as np
 
 from rp_jax import categories
 from rp_jax.sources.synthetic import object_textures as ot
-from rp_jax.sources.synthetic.scene import (
+from rp_jax.sources.synthetic.quads import (
     Material,
     QuadBuilder,
     QuadSet,
-    Scene,
     TextureCache,
     box_quads,
 )
+from rp_jax.sources.synthetic.scene import Scene
 
 __all__ = [
     "N_CAR_VARIANTS",

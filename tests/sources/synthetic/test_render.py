@@ -9,8 +9,9 @@ import pytest
 from rp_jax import categories
 from rp_jax.sources.synthetic import textures as tx
 from rp_jax.sources.synthetic.contact_sheet import contact_sheet
+from rp_jax.sources.synthetic.quads import Material, QuadSet
 from rp_jax.sources.synthetic.render import look_at, project, render
-from rp_jax.sources.synthetic.scene import Material, QuadSet, build_scene
+from rp_jax.sources.synthetic.scene import build_scene
 
 TZ = dt.timezone(dt.timedelta(hours=-5))
 NOON = dt.datetime(2024, 7, 9, 12, 30, tzinfo=TZ)
