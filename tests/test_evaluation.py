@@ -45,6 +45,21 @@ def test_descriptor_knn_finds_neighbours():
     np.testing.assert_allclose(pred, [[1.0, 0.0], [0.0, 1.0]])
 
 
+def test_descriptor_knn_on_threads_equals_one_thread_and_a_brute_force_by_hand():
+    rng = np.random.default_rng(1)
+    desc = rng.normal(size=(300, 8)).astype(np.float32)
+    label = rng.random((300, 5)).astype(np.float32)
+    mask = rng.random((300, 5)) > 0.3
+    queries = rng.normal(size=(37, 8)).astype(np.float32)
+    one = ev.descriptor_knn(desc, label, mask, queries, k=4, block=5, workers=1)
+    many = ev.descriptor_knn(desc, label, mask, queries, k=4, block=5, workers=3)
+    np.testing.assert_array_equal(one, many)
+    for i in (0, 18, 36):  # the last block holds 2 queries
+        nn = np.argsort(((desc - queries[i]) ** 2).sum(1))[:4]
+        expected = (label[nn] * mask[nn]).sum(0) / np.maximum(mask[nn].sum(0), 1)
+        np.testing.assert_allclose(one[i], expected, rtol=1e-6)
+
+
 def test_per_group_errors():
     pred = np.zeros((4, 2))
     label = np.array([[1.0, 1.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
