@@ -101,7 +101,9 @@ def descriptor_knn(
     available): NumPy's partition and arithmetic release the GIL, and one thread left the
     other core idle (2,048 queries against 480,000 training points, 256 a block, medians of
     two runs: 31.5 s on one thread, 14.7 s on two, 2-core AMD EPYC). Every block is computed
-    alone, so the result does not depend on ``workers``.
+    alone, so the result does not depend on ``workers`` or ``block``; a block is made smaller
+    where its distances and their partition (about 16 bytes per training point and query)
+    would pass 1 GiB a thread.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -118,6 +120,7 @@ def descriptor_knn(
         lab, msk = train_label[nn], m[nn]  # [b, k, T]
         out[s:s + block] = (lab * msk).sum(1) / np.maximum(msk.sum(1), 1.0)
 
+    block = max(1, min(block, (1 << 30) // (16 * max(len(tr), 1))))
     starts = range(0, len(test_descriptor), block)
     if workers is None:
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
