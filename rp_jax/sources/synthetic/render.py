@@ -18,10 +18,10 @@ Conventions: ``View`` follows ``rp_jax.sources.capture`` (OpenCV pixels with the
 the top-left pixel at (0, 0), ``x_cam = R X + t``, camera looking along +z). A non-zero
 ``distortion`` renders the image the lens records (undistorted render, then ``cv2.remap``).
 
-Why this module is over 800 lines: it is one frame's pipeline (geometry, rasterisation,
-cast shadows, the frame's assembly), whose stages share the private plane-geometry helpers
-and the per-frame buffers; what stands alone lives apart (``conditions``, ``photometry``,
-``sky``, ``camera_effects``, ``scene``, ``traffic``, the textures).
+This module is one frame's pipeline (rasterisation and the frame's assembly); what stands
+alone lives apart: the plane geometry and texture warps (``plane_warp``), cast shadows
+(``shadows``), ``conditions``, ``photometry``, ``sky``, ``camera_effects``, ``scene``,
+``quads``, ``traffic`` and the textures.
 """
 
 from __future__ import annotations
@@ -36,14 +36,15 @@ import numpy as np
 from rp_jax import categories
 from rp_jax.sources.synthetic import camera_effects, photometry, sky
 from rp_jax.sources.synthetic import conditions as condlib
+from rp_jax.sources.synthetic.plane_warp import NEAR, poly_region, warp
 from rp_jax.sources.synthetic.quads import Material, QuadSet, TextureState
 from rp_jax.sources.synthetic.scene import Scene
+from rp_jax.sources.synthetic.shadows import cast_shadows, object_shadow
 from rp_jax.sources.synthetic.traffic import dynamic_quads
 
 __all__ = ["View", "Frame", "render", "project", "look_at"]
 
 SS = 2  # supersampling factor
-NEAR = 0.05
 # Leaves move in the wind: each frame displaces a crown's texels by a smooth random field
 # (std: calm sway + per m/s of the day's wind; correlation length: a leaf cluster), so
 # foliage never looks the same in two frames, as on a real webcam. Beaufort 4 (about
@@ -158,95 +159,6 @@ def project(view: View, X: np.ndarray) -> np.ndarray:
     return np.stack([K[0, 0] * x + K[0, 1] * y + K[0, 2], K[1, 1] * y + K[1, 2]], -1)
 
 
-# ---------------------------------------------------------------- geometry helpers
-
-
-def _clip_near(poly: np.ndarray, near: float = NEAR) -> np.ndarray:
-    """Sutherland-Hodgman clip of a camera-space polygon (M, 3) to z >= near."""
-    z = poly[:, 2]
-    if np.all(z >= near):
-        return poly
-    out = []
-    m = len(poly)
-    for i in range(m):
-        a, b = poly[i], poly[(i + 1) % m]
-        ina, inb = a[2] >= near, b[2] >= near
-        if ina:
-            out.append(a)
-        if ina != inb:
-            s = (near - a[2]) / (b[2] - a[2])
-            out.append(a + s * (b - a))
-    return np.array(out).reshape(-1, 3)
-
-
-def _poly_region(poly_cam: np.ndarray, K: np.ndarray, W: int, H: int):
-    """ROI and coverage mask (uint8, 255 inside) of a camera-space polygon; None when not in
-    the image."""
-    poly = _clip_near(poly_cam)
-    if len(poly) < 3:
-        return None
-    pix = poly @ K.T
-    pix = pix[:, :2] / pix[:, 2:3]
-    x0, y0 = np.floor(pix.min(0)).astype(int)
-    x1, y1 = np.ceil(pix.max(0)).astype(int) + 1
-    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
-    if x1 <= x0 or y1 <= y0:
-        return None
-    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    pts = np.round((pix - [x0, y0]) * 16.0).astype(np.int32)
-    cv2.fillPoly(mask, [pts], 255, lineType=cv2.LINE_8, shift=4)
-    return (x0, y0, x1, y1), mask, pix
-
-
-def _texel_homography(o, u, v, Wt: int, Ht: int, K, R, t) -> np.ndarray:
-    """Homography from level-0 texel coordinates (texel centres at integers) to pixels."""
-    Ru, Rv = R @ u / Wt, R @ v / Ht
-    c = R @ o + t + 0.5 * Ru + 0.5 * Rv
-    return K @ np.stack([Ru, Rv, c], axis=1)
-
-
-def _level_matrix(level: int) -> np.ndarray:
-    s = float(2**level)
-    off = 0.5 * s - 0.5
-    return np.array([[s, 0, off], [0, s, off], [0, 0, 1.0]])
-
-
-def _choose_level(Hm: np.ndarray, at: np.ndarray, n_levels: int) -> int:
-    """Mip level with texels about the size of a pixel around image point ``at``."""
-    Hinv = np.linalg.inv(Hm)
-    p = np.array([[at[0], at[1], 1.0], [at[0] + 1, at[1], 1.0], [at[0], at[1] + 1, 1.0]]) @ Hinv.T
-    p = p[:, :2] / p[:, 2:3]
-    scale = max(np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[2] - p[0]))
-    return int(np.clip(np.floor(np.log2(max(scale, 1e-9)) + 0.3), 0, n_levels - 1))
-
-
-def _poly_area(pix: np.ndarray) -> float:
-    x, y = pix[:, 0], pix[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
-
-
-def _warp(
-    tex_pyr, o, u, v, K, R, t, roi, pix, alpha: bool, area: float | None = None
-) -> np.ndarray:
-    Wt, Ht = tex_pyr[0].shape[1], tex_pyr[0].shape[0]
-    Hm = _texel_homography(o, u, v, Wt, Ht, K, R, t)
-    if len(pix) == 4:  # unclipped: the mean texel footprint of the whole quad
-        area = _poly_area(pix) if area is None else area
-        ratio = np.sqrt(Wt * Ht / max(area, 1e-6))
-        level = int(np.clip(np.floor(np.log2(max(ratio, 1e-9)) + 0.3), 0, len(tex_pyr) - 1))
-    else:
-        level = _choose_level(Hm, pix.mean(0), len(tex_pyr))
-    x0, y0, x1, y1 = roi
-    M = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]]) @ Hm @ _level_matrix(level)
-    return cv2.warpPerspective(
-        tex_pyr[level],
-        M,
-        (x1 - x0, y1 - y0),
-        flags=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT if alpha else cv2.BORDER_REPLICATE,
-    )
-
-
 # ---------------------------------------------------------------- rasterisation
 
 
@@ -353,7 +265,7 @@ def _rasterize(
     Kinv = np.linalg.inv(K)
     coef = (plane @ Kinv).astype(np.float32)  # 1/z = coef . [u, v, 1]
     # Projection, bounding box, fill points and area of every quad at once (near-clipped
-    # quads go through ``_poly_region``).
+    # quads go through ``poly_region``).
     needs_clip = np.any(zc[visible] < NEAR, 1)
     pc = cam[visible] @ K.T
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -379,7 +291,7 @@ def _rasterize(
         if abs(d_c[i]) < 1e-6:
             continue
         if needs_clip[j]:
-            reg = _poly_region(cam[i], K, W, H)
+            reg = poly_region(cam[i], K, W, H)
             if reg is None:
                 continue
             (x0, y0, x1, y1), mask, pix = reg
@@ -408,7 +320,7 @@ def _rasterize(
         for rx, ry, rw, rh in [(0, 0, bw, bh)] if moving else _visible_strips(m):
             sm, siz = m[ry : ry + rh, rx : rx + rw], iz[ry : ry + rh, rx : rx + rw]
             sx0, sy0 = x0 + rx, y0 + ry
-            warped = _warp(
+            warped = warp(
                 pyr, o[i], u[i], v[i], K, R, t, (sx0, sy0, sx0 + rw, sy0 + rh), pix, alpha, area
             )
             if moving:
@@ -426,127 +338,6 @@ def _rasterize(
         drawn[i] = True
         rois[i] = (x0, y0, x0 + bw, y0 + bh)
     return _GBuffer(gb, zb, qid, plane, drawn, rois)
-
-
-# ---------------------------------------------------------------- shadows
-
-
-def _box_corners(boxes: np.ndarray) -> np.ndarray:
-    lo, hi = boxes[:, 0], boxes[:, 1]
-    sel = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-    return np.where(sel[None, :, :] == 0, lo[:, None, :], hi[:, None, :])
-
-
-def _object_shadow(points: np.ndarray, sun: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """1 where the ray from a point towards the sun hits a box (slab test), else 0."""
-    if len(boxes) == 0 or len(points) == 0:
-        return np.zeros(len(points), np.float32)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / np.where(np.abs(sun) < 1e-12, 1e-12, sun)
-        t0 = (boxes[None, :, 0, :] - points[:, None, :]) * inv
-        t1 = (boxes[None, :, 1, :] - points[:, None, :]) * inv
-    tmin = np.minimum(t0, t1).max(-1)
-    tmax = np.maximum(t0, t1).min(-1)
-    hit = tmax >= np.maximum(tmin, 1e-3)
-    return hit.any(1).astype(np.float32)
-
-
-def _cast_shadows(
-    gbuf: _GBuffer,
-    qid: np.ndarray,
-    quads: QuadSet,
-    scene: Scene,
-    state: TextureState,
-    sun: np.ndarray,
-    boxes: np.ndarray,
-    alpha_idx: np.ndarray,
-    K,
-    R,
-    t,
-    W: int,
-    H: int,
-) -> np.ndarray:
-    """uint8 (H, W) = 1 where a receiving plane's pixel lies in a cast shadow.
-
-    ``qid`` is ``gbuf.qid`` (int32, the quad seen at each pixel).
-    """
-    shadow = np.zeros((H, W), np.uint8)
-    drawn_recv = np.flatnonzero(gbuf.drawn & (quads.receiver >= 0))
-    if len(drawn_recv) == 0 or sun[2] <= 0.01:
-        return shadow
-    planes = np.unique(quads.receiver[drawn_recv])
-    corners8 = _box_corners(boxes) if len(boxes) else np.zeros((0, 8, 3))
-    nrm_all = quads.normal
-    alpha_idx = np.asarray(alpha_idx, np.int64)
-    # Three corners (origin, origin + u, origin + v) of every cut-out caster.
-    a_o = quads.origin[alpha_idx]
-    a_oc = np.stack([a_o, a_o + quads.u[alpha_idx], a_o + quads.v[alpha_idx]], 1)  # (A, 3, 3)
-    in_plane = np.zeros(quads.n + 1, np.uint8)
-    for p in planes:
-        members = drawn_recv[quads.receiver[drawn_recv] == p]
-        q0 = members[0]
-        n = nrm_all[q0]
-        ns = float(n @ sun)
-        if ns <= 0.02:
-            continue  # the plane faces away from the sun: Lambert already darkens it
-        d = float(n @ quads.origin[q0])
-        rx0 = min(gbuf.roi[i][0] for i in members)
-        ry0 = min(gbuf.roi[i][1] for i in members)
-        rx1 = max(gbuf.roi[i][2] for i in members)
-        ry1 = max(gbuf.roi[i][3] for i in members)
-        # Receiver extent in plane coordinates (for culling occluders).
-        e1 = quads.u[q0] / np.linalg.norm(quads.u[q0])
-        e2 = np.cross(n, e1)
-        mo, mu, mv = quads.origin[members], quads.u[members], quads.v[members]
-        mc = np.concatenate([mo, mo + mu, mo + mv, mo + mu + mv])
-        ext = np.stack([mc @ e1, mc @ e2], 1)
-        elo, ehi = ext.min(0) - 0.1, ext.max(0) + 0.1
-        tmp = np.zeros((ry1 - ry0, rx1 - rx0), np.uint8)
-        Kroi = np.array([[1, 0, -rx0], [0, 1, -ry0], [0, 0, 1.0]]) @ K
-        if len(corners8):
-            lam = (corners8 @ n - d) / ns  # (B, 8)
-            ok = np.all(lam >= -1e-6, 1) & np.any(lam > 1e-3, 1)
-            proj = corners8 - lam[..., None] * sun
-            c2 = np.stack([proj @ e1, proj @ e2], -1)  # (B, 8, 2)
-            ok &= np.all(c2.max(1) >= elo, 1) & np.all(c2.min(1) <= ehi, 1)
-            for b in np.flatnonzero(ok):
-                hull = cv2.convexHull(c2[b].astype(np.float32)).reshape(-1, 2).astype(np.float64)
-                poly = n * d + hull[:, :1] * e1 + hull[:, 1:2] * e2
-                reg = _poly_region(poly @ R.T + t, Kroi, rx1 - rx0, ry1 - ry0)
-                if reg is not None:
-                    (x0, y0, x1, y1), mask, _ = reg
-                    cv2.bitwise_or(tmp[y0:y1, x0:x1], mask, dst=tmp[y0:y1, x0:x1])
-        if len(alpha_idx):
-            lam = (a_oc @ n - d) / ns  # (A, 3)
-            pr = a_oc - lam[..., None] * sun  # projected origin, origin + u, origin + v
-            # (A, 4, 3)
-            quad = np.stack([pr[:, 0], pr[:, 1], pr[:, 1] + pr[:, 2] - pr[:, 0], pr[:, 2]], 1)
-            q2 = np.stack([quad @ e1, quad @ e2], -1)  # (A, 4, 2)
-            ok = np.all(lam >= -1e-6, 1) & np.all(q2.max(1) >= elo, 1) & np.all(q2.min(1) <= ehi, 1)
-            for k in np.flatnonzero(ok):
-                reg = _poly_region(quad[k] @ R.T + t, Kroi, rx1 - rx0, ry1 - ry0)
-                if reg is None:
-                    continue
-                roi, mask, pix = reg
-                o2 = pr[k, 0]
-                pyr = scene.textures.pyramid(quads.tex[alpha_idx[k]], state)
-                warped = _warp(
-                    pyr, o2, pr[k, 1] - o2, pr[k, 2] - o2, Kroi, R, t, roi, pix, alpha=True
-                )
-                x0, y0, x1, y1 = roi
-                tmp[y0:y1, x0:x1] |= mask & np.greater(warped[..., 3], 127).view(np.uint8)
-        lo, hi = int(members.min()), int(members.max())
-        if (
-            hi - lo + 1 == len(members) and min(tmp.shape) > 1
-        ):  # a contiguous id range (ground, walls)
-            sel = cv2.inRange(qid[ry0:ry1, rx0:rx1], lo, hi) & 1
-        else:
-            in_plane[:] = 0
-            in_plane[members] = 1
-            sel = np.take(in_plane, qid[ry0:ry1, rx0:rx1].astype(np.intp))
-        cv2.bitwise_and(tmp, sel, dst=tmp)  # mask values 255 & 1 -> 1
-        cv2.bitwise_or(shadow[ry0:ry1, rx0:rx1], tmp, dst=shadow[ry0:ry1, rx0:rx1])
-    return shadow
 
 
 # ---------------------------------------------------------------- distortion canvas
@@ -696,13 +487,13 @@ def render(
     ndl = np.where(foliage, 0.55, ndl)
     obj = quads.receiver < 0
     if sun[2] > 0:
-        occl = _object_shadow(quads.shadow_pt[obj], sun, scene.buildings)
+        occl = object_shadow(quads.shadow_pt[obj], sun, scene.buildings)
         ndl[obj] *= 1.0 - occl
     amb = np.where(foliage, 0.75, 0.55 + 0.45 * nrm[:, 2])
     wet = np.ones(N)
     if cond.wet:
         wet = np.where(mat == Material.GROUND, 0.6, np.where(mat == Material.CAR, 1.0, 0.85))
-    shadow = _cast_shadows(
+    shadow = cast_shadows(
         gbuf, gbuf.qid, quads, scene, state, sun, boxes, alpha_idx, Kss, R, t, W2, H2
     )
     # One gather gives every subsample's light (direct * sun + ambient * sky, RGB) and sky
