@@ -31,6 +31,7 @@ import numpy as np
 
 from experiments import records, run_files
 from experiments.conditional import config as config_lib
+from experiments.conditional.variants import load_params, network, variant_name
 from experiments.sec4a import crossval as paper_crossval
 from experiments.sec4a import experiment
 from rp_jax import evaluation, files
@@ -38,8 +39,7 @@ from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default as configs_default
 from rp_jax.progress import bar as tqdm  # the one progress helper
 
-__all__ = ["cross_validate", "load_pairs", "markdown", "parse_variants", "per_scene_scores", "run",
-           "variant_name"]
+__all__ = ["cross_validate", "load_pairs", "markdown", "parse_variants", "per_scene_scores", "run"]
 
 
 def parse_variants(text: str) -> list[tuple[str, ...]]:
@@ -79,10 +79,6 @@ def run(config: ml_collections.ConfigDict, workdir: str | Path, ablation: str | 
     return 0
 
 
-def variant_name(conditions: tuple[str, ...]) -> str:
-    return "+".join(conditions) if conditions else "time"
-
-
 def load_pairs(config: ml_collections.ConfigDict, workdir: Path, split: str = "train"):
     """A split's columns (for the paper's predictor), its pair arrays (for the conditional
     one) and its sidecar, building the dataset and its per-pair outcomes if absent."""
@@ -117,19 +113,6 @@ def _settings(config):
         weight_decay=float(config.train.weight_decay), grad_clip=float(config.train.grad_clip),
         seed=int(config.seed), brightness=float(a.brightness), contrast=float(a.contrast),
         flip=bool(a.flip))
-
-
-def _network(config, conditions):
-    from rp_jax.conditional.model import ConditionalPredictor
-    from rp_jax.model import DTYPES
-
-    m = config.model
-    return ConditionalPredictor(conditions=conditions,
-                                encoder_channels=tuple(m.encoder_channels),
-                                encoder_features=int(m.encoder_features),
-                                hidden=int(m.conditional_hidden),
-                                harmonics=int(m.time_harmonics), dtype=DTYPES[m.dtype],
-                                decay_time_scales=config_lib.decay_time_scales(config))
 
 
 def _score(pred, label, mask) -> dict:
@@ -173,7 +156,7 @@ def _run_variant(config, conditions, train_arrays, held_arrays, T: int, run_dir:
     from rp_jax.conditional import train as ctrain
 
     t0 = time.perf_counter()
-    net = _network(config, conditions)
+    net = network(config, conditions)
     params, history = ctrain.fit(net, train_arrays, _settings(config), progress=progress)
     run_dir.mkdir(parents=True, exist_ok=True)
     files.write_bytes(run_dir / "params.msgpack", serialization.to_bytes(params))
@@ -192,10 +175,8 @@ def _run_variant(config, conditions, train_arrays, held_arrays, T: int, run_dir:
 
 def _saved_variant_per_scene(config, conditions, held_arrays, T: int, run_dir: Path) -> dict:
     """Per-viewpoint scores of a variant trained by an earlier run (its saved params)."""
-    from experiments.conditional import figures
-
-    net = _network(config, conditions)
-    vec = _t_vectors(config, net, figures.load_params(net, run_dir / "params.msgpack"),
+    net = network(config, conditions)
+    vec = _t_vectors(config, net, load_params(net, run_dir / "params.msgpack"),
                      held_arrays, T)
     mask = held_arrays.points["label_mask"].astype(bool)
     return per_scene_scores(vec, held_arrays.points["label"], mask, _scenes(held_arrays))

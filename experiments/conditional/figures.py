@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["load_params", "year_of_one_point"]
+__all__ = ["year_of_one_point"]
 
 _CLEAR = {"cloud_cover": 0.05, "precipitation": 0.0, "snow_cover": 0.0, "weather": 0}
 
@@ -28,18 +28,6 @@ def _year_moments(zone: str, place, year: int = 2013, with_year: bool = False
     start = dt.datetime(year, 1, 1, tzinfo=tz)
     times = [start + dt.timedelta(days=d, hours=h) for d in range(365) for h in range(24)]
     return inputs.moment_at(times, place=place, weather=_CLEAR, with_year=with_year)
-
-
-def load_params(net, path: Path):
-    """The params a run saved (``params.msgpack``) for the network ``net``."""
-    import jax
-    from flax import serialization
-
-    from rp_jax.conditional import model as cmodel
-
-    template = jax.eval_shape(lambda: cmodel.init_params(net, jax.random.key(0)))
-    template = jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), template)
-    return serialization.from_bytes(template, path.read_bytes())
 
 
 def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path) -> Path:
@@ -60,7 +48,7 @@ def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path)
     import matplotlib.pyplot as plt
 
     from experiments.conditional import config as config_lib
-    from experiments.conditional import crossval
+    from experiments.conditional.variants import load_params, network, variant_name
     from rp_jax import files
     from rp_jax.model import preprocess_patches
 
@@ -78,8 +66,8 @@ def year_of_one_point(config, run_dir: Path, variants, held, sidecar, out: Path)
                              squeeze=False)
     night = (year["sun_elevation_deg"] < 0).reshape(365, 24).T
     for ax, conditions in zip(axes[:, 0], variants):
-        name = crossval.variant_name(conditions)
-        net = crossval._network(config, conditions)
+        name = variant_name(conditions)
+        net = network(config, conditions)
         params = load_params(net, run_dir / name / "params.msgpack")
         logits = jax.jit(net.apply)({"params": params},
                                     preprocess_patches(jnp.asarray(p["patch"][index:index + 1])),

@@ -7,13 +7,13 @@ import pytest
 
 from experiments.conditional import __main__ as cli
 from experiments.conditional import config as config_lib
-from experiments.conditional import crossval
+from experiments.conditional import crossval, variants
 
 
 def test_variants_parse_and_name():
     got = crossval.parse_variants("time, sun,weather+sun ,sun+weather+semantics")
     assert got == [(), ("sun",), ("sun", "weather"), ("sun", "weather", "semantics")]
-    assert [crossval.variant_name(v) for v in got] == [
+    assert [variants.variant_name(v) for v in got] == [
         "time", "sun", "sun+weather", "sun+weather+semantics"]
     with pytest.raises(ValueError, match="unknown conditions"):
         crossval.parse_variants("sun+fog")
@@ -202,9 +202,9 @@ def test_the_decay_basis_reaches_the_model_from_the_shared_config(capsys, tmp_pa
 
     config = config_lib.get_config("webcam_clipart:tiny")
     assert config.model.decay_time_scales == "" and config_lib.decay_time_scales(config) == ()
-    assert crossval._network(config, ()).decay_time_scales == ()
+    assert variants.network(config, ()).decay_time_scales == ()
     config.model.decay_time_scales = "1, 3,10"
-    net = crossval._network(config, ("sun",))
+    net = variants.network(config, ("sun",))
     assert net.decay_time_scales == (1.0, 3.0, 10.0) and net.conditions == ("sun",)
     assert config_lib.paper_config(config).model.decay_time_scales == ""
     for bad in ("1,0", "1,year", "-2"):
@@ -213,7 +213,7 @@ def test_the_decay_basis_reaches_the_model_from_the_shared_config(capsys, tmp_pa
             config_lib.decay_time_scales(config)
     calls = []
     monkeypatch.setattr(crossval, "cross_validate", lambda config, *a, **kw: calls.append(
-        crossval._network(config, ()).decay_time_scales))
+        variants.network(config, ()).decay_time_scales))
 
     def main(*flags):
         return sec4a_cli.main(["--size", "tiny", "--workdir", str(tmp_path / "run"), *flags],
