@@ -42,7 +42,6 @@ def get_config(size: str = "full") -> ml_collections.ConfigDict:
         "curve": curve,
         "order_seed": 0,
         "shipped": ("webcam_clipart-synthetic",),
-        "knn_block": 256,  # test points per block of the descriptor kNN (memory)
     })
     return config
 

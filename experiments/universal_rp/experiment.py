@@ -105,15 +105,7 @@ def evaluate_world(config, rp, train_cols: dict, world_cols: dict) -> dict:
     Sec. IV-A baselines fit on ``train_cols`` (the records the RP trained on)."""
     from experiments.sec4a import experiment as sec4a
 
-    label, mask = train_cols["label"], train_cols["label_mask"].astype(bool)
-    baselines = {
-        "per_slot_mean": evaluation.per_slot_mean(label, mask, len(world_cols["label"])),
-        "slot_conditioned_mean": evaluation.slot_conditioned_mean(
-            label, mask, train_cols["slot"], world_cols["slot"]),
-        "descriptor_knn": evaluation.descriptor_knn(
-            train_cols["descriptor"], label, mask, world_cols["descriptor"],
-            k=config.eval.knn_k, block=config.universal.knn_block),
-    }
+    baselines = sec4a.baseline_predictions(config, train_cols, world_cols)
     return {
         "rp": _scores(sec4a.rp_predictions(rp, rp.config, world_cols), world_cols),
         "baselines": {name: _scores(p, world_cols) for name, p in baselines.items()},
@@ -197,8 +189,9 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     for n in u.curve:
         t0 = time.perf_counter()
         cols = subset(train_all, np.isin(train_all["viewpoint"], order[:n]))
-        rp = _train_point(config, workdir / f"scenes_{n:03d}", cols, progress)
-        per_world = {name: evaluate_world(config, rp, cols, w) for name, w in unseen.items()}
+        largest = _train_point(config, workdir / f"scenes_{n:03d}", cols, progress)
+        per_world = {name: evaluate_world(config, largest, cols, w)
+                     for name, w in unseen.items()}
         curve.append({"scenes": n, "train_points": int(len(cols["label"])),
                       "viewpoints": order[:n], "worlds": per_world,
                       "summary": summarize(per_world)})
@@ -211,13 +204,13 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     from experiments.universal_rp import photographs
 
     shipped, on_photographs = {}, {}
+    photos = photographs.photograph_paths()
     for name in u.shipped:
         rp = predict.load(name)
         shipped[name] = {w: _scores(sec4a.rp_predictions(rp, rp.config, cols), cols)
                          for w, cols in unseen.items()}
-        on_photographs[name] = photographs.category_scores(rp, photographs.photograph_paths())
-    on_photographs[f"RP of {u.curve[-1]} webcams"] = photographs.category_scores(
-        predict.load(workdir / f"scenes_{u.curve[-1]:03d}"), photographs.photograph_paths())
+        on_photographs[name] = photographs.category_scores(rp, photos)
+    on_photographs[f"RP of {u.curve[-1]} webcams"] = photographs.category_scores(largest, photos)
     metrics = {
         "curve": curve,
         "shipped": shipped,

@@ -37,7 +37,14 @@ __all__ = ["UNSEEN_CITIES", "WORLD_CITIES", "plan", "plan_unseen", "webcams_per_
            "world_days", "world_sites"]
 
 # (city, latitude, longitude, time zone): the training pool, from the equator to 61 deg
-# and both hemispheres (seasons flip south of it, ``conditions.season_of_day``).
+# and both hemispheres (seasons flip south of it, ``conditions.season_of_day``). Coordinates
+# are the cities' centres (WGS84, to 1e-4 deg), zones the IANA database's. What a city
+# brings is physical: the sun's path (``sun.solar_position``), its seasons and snow
+# (``conditions``) and the local clock of the schedule. The street draws below (vegetation,
+# lanes, facade orientation, year) are not physical rates but the spread of the training
+# distribution, chosen before any run and never on a held-out world: every street type of
+# ``scene.build_scene`` (urban to park-like, 2 or 4 lanes, two-lane streets the common case)
+# and both facade orientations the renderer's east-west street allows.
 WORLD_CITIES = (
     ("Toronto", 43.6532, -79.3832, "America/Toronto"),
     ("Minneapolis", 44.9778, -93.2650, "America/Chicago"),
