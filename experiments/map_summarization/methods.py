@@ -42,8 +42,8 @@ A row scored by a new model also registers that model once::
 when choosing anything), ``world_scores`` once per world and returns a function of
 :class:`At` giving [P] scores, plus an optional dict reported per seed. Rows selecting by a
 score get ``inlier_auc`` (the score's AUC) and every row ``selecting_auc`` (the AUC of the
-number of the run's ratios at which a point is kept in the query's summary: what actually
-selects) in ``metrics.json``.
+number of pruning ratios 5 %...95 % (``world.SELECTING_GRID``) at which a point is kept in
+the query's summary: what actually selects) in ``metrics.json``.
 """
 
 from __future__ import annotations
@@ -207,8 +207,10 @@ class PredictorSpec:
 
 ROWS: dict[str, Row] = {}
 PREDICTORS: dict[str, PredictorSpec] = {}
-# Modules whose ``register_rows()`` adds rows (and predictors) of their own.
-EXTENSIONS: tuple[str, ...] = ()
+# Modules whose ``register_rows()`` adds rows (and predictors) of their own: the outcome
+# scorer and its time-agnostic twin (issue 26, section 2): outcome, outcome_top,
+# outcome_agnostic, outcome_agnostic_top.
+EXTENSIONS: tuple[str, ...] = ("experiments.map_summarization.outcome_scorer",)
 _loaded: set[str] = set()
 
 
@@ -406,8 +408,9 @@ def row_of(name: str, config) -> Row:
 
 def is_candidate(name: str) -> bool:
     """Whether row ``name`` is a candidate recipe for ``rp``: a registered row of kind
-    "method" other than ``rp`` itself (``rp_paper`` included; the outcome rows once their
-    module is loaded)."""
+    "method" other than ``rp`` itself (``rp_paper`` included, and the rows of the
+    ``EXTENSIONS``, loaded first)."""
+    load_extensions()
     return name != "rp" and name in ROWS and ROWS[name].kind == "method"
 
 
@@ -545,10 +548,3 @@ def per_of(row: Row, models: Mapping[str, object]) -> str:
         if row.predictor in models and spec.per_query(models[row.predictor]):
             return "query"
     return row.per
-
-
-# Rows scored by the outcome scorer and its time-agnostic twin (issue 26, section 2):
-# outcome, outcome_top, outcome_agnostic, outcome_agnostic_top (``outcome_scorer.ROWS``).
-from experiments.map_summarization import outcome_scorer as _outcome_scorer  # noqa: E402
-
-_outcome_scorer.register_rows()

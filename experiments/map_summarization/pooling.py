@@ -135,11 +135,13 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     full_acc = {
         th: round(100.0 * float(full[:, j].mean()), 2) for j, th in enumerate(THRESHOLD_KEYS)
     }
-    selecting_auc = {}
-    for method in methods:
-        vals = [s.get("selecting_auc", {}).get(method) for s in per_seed]
-        vals = [v for v in vals if v is not None]
-        selecting_auc[method] = round(float(np.mean(vals)), 4) if vals else None
+    selecting_auc, selecting_auc_run = {}, {}
+    for key, out in (("selecting_auc", selecting_auc),
+                     ("selecting_auc_run_ratios", selecting_auc_run)):
+        for method in methods:
+            vals = [s.get(key, {}).get(method) for s in per_seed]
+            vals = [v for v in vals if v is not None]
+            out[method] = round(float(np.mean(vals)), 4) if vals else None
     auc = {}
     auc_per_date: dict[str, dict[str, float | None]] = {}
     for method in methods:
@@ -184,6 +186,7 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
         "full_map_accuracy": full_acc,
         "inlier_auc": auc,
         "selecting_auc": selecting_auc,
+        "selecting_auc_run_ratios": selecting_auc_run,
         "inlier_auc_per_date": auc_per_date,
         "image_coverage": coverage,
         "accuracy_per_date": per_date,

@@ -26,6 +26,15 @@ KEEP_AT_90 = 0.80
 MIN_SELECTING_AUC = 0.8
 
 
+def _selecting_text(metrics: Mapping) -> str:
+    """Which pruning ratios a run's selecting rank counts (world.SELECTING_GRID since the
+    grid was added; a metrics.json without ``selecting_auc_run_ratios`` counted the run's
+    own ratios)."""
+    if "selecting_auc_run_ratios" in metrics:
+        return "5 %, 10 %, ..., 95 %"
+    return "of the run"
+
+
 def _fmt(v, digits: int = 3) -> str:
     return "n/a" if v is None else f"{v:.{digits}f}"
 
@@ -233,8 +242,8 @@ def findings(metrics: Mapping, labels: Mapping[str, str] | None = None) -> list[
     out.append(
         "- Inlier AUC (ranking the full map's PnP inliers among the retrieved images' points, "
         "positives only from queries the full map localizes within (5 m, 10 deg); 0.5 = "
-        "chance), of the row's score / of what selects (the number of ratios a point is "
-        "kept at): "
+        "chance), of the row's score / of what selects (the number of pruning ratios "
+        f"{_selecting_text(metrics)} a point is kept at): "
         + ", ".join(f"{labels.get(k, k)} {_fmt(auc.get(k))} / {_fmt(sel.get(k))}"
                     for k in metrics["methods"])
         + "."
@@ -266,8 +275,15 @@ def tables_markdown(metrics: Mapping) -> str:
         ]
         lines += paired_rp_section(metrics, labels, th)
     auc, sel = metrics["inlier_auc"], metrics.get("selecting_auc") or {}
-    lines += _head("row", ["inlier AUC of its score", "selecting AUC"])
+    run = metrics.get("selecting_auc_run_ratios")
+    lines += [f"Inlier AUC of each row's score, and of what it selects: the number of pruning "
+              f"ratios {_selecting_text(metrics)} a point is kept at (the selecting AUC the bar "
+              "reads)" + ("" if run is None else
+                          ", and the number of the run's own ratios only") + ":", ""]
+    lines += _head("row", ["inlier AUC of its score", "selecting AUC",
+                           *([] if run is None else ["selecting AUC, run's ratios"])])
     lines += [f"| {labels.get(k, k)} | {_fmt(auc.get(k))} | {_fmt(sel.get(k))} |"
+              + ("" if run is None else f" {_fmt(run.get(k))} |")
               for k in metrics["methods"]]
     return "\n".join(lines) + "\n"
 

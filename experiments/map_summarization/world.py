@@ -60,6 +60,7 @@ __all__ = [
     "CMU_SEASONS",
     "RESULT_VERSION",
     "SEED_FILE",
+    "SELECTING_GRID",
     "WorldMap",
     "build_map",
     "build_map_from",
@@ -69,6 +70,8 @@ __all__ = [
     "inlier_aucs",
     "localize_full_map",
     "oracle_evidence",
+    "selecting_aucs",
+    "selecting_rank",
     "summarize_and_localize",
     "world_context",
     "world_queries",
@@ -79,8 +82,15 @@ log = logging.getLogger(__name__)
 SEED_FILE = "seed.json"
 # Bumped when a seed's outcomes mean something else for the same config (part of the
 # fingerprint, so a re-run never reuses a seed.json of other rules). 2: the corrected
-# oracles, weighted K-cover in points, the maplab row, selecting ranks.
-RESULT_VERSION = 2
+# oracles, weighted K-cover in points, the maplab row, selecting ranks. 3: the selecting
+# rank counts the kept-at ratios of SELECTING_GRID, not only the run's ratios.
+RESULT_VERSION = 3
+# Pruning ratios at which every row's summary is also drawn (not localized) to rank what it
+# selects: a point's selecting rank is the number of these ratios it is kept at. With only
+# the run's five ratios (50-90 % pruned) the half of every map kept at none of them is one
+# tie, whatever the rule thinks of it; 5 %...95 % in steps of 5 resolves a top-per-part rule
+# to twentieths of its within-part rank and treats every rule (K-cover too) alike.
+SELECTING_GRID = tuple(round(0.05 * k, 2) for k in range(1, 20))
 # The AUCs' positives come only from queries the full map localizes within this threshold.
 CORRECT_POSE = THRESHOLD_KEYS.index("5m_10deg")
 
@@ -305,6 +315,24 @@ def _units(per: str, queries: list[dict]) -> list[tuple[methods.At, list[int]]]:
     return out
 
 
+def selecting_rank(ctx: methods.WorldContext, row: methods.Row,
+                   units: Sequence[tuple[methods.At, list[int]]], ratios: Sequence[float],
+                   candidates: Sequence[np.ndarray | None]) -> list[np.ndarray | None]:
+    """Per query, the number of ``ratios`` at which each of its ``candidates`` (point rows;
+    None: a query without any) is kept in its unit's summary by ``row``'s own rule: the
+    rank of what the row selects, for the selecting AUC."""
+    rank = [None if c is None else np.zeros(len(c), np.int64) for c in candidates]
+    for ratio in ratios:
+        for at, members in units:
+            if all(rank[i] is None for i in members):
+                continue
+            keep = row.select(ctx, row, float(ratio), at)
+            for i in members:
+                if rank[i] is not None:
+                    rank[i] += keep[candidates[i]]
+    return rank
+
+
 def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
                            ratios: list[float], loc_kwargs: dict, full: FullMap,
                            models: Mapping[str, object], out_dir: Path, *,
@@ -313,12 +341,14 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
 
     Returns ``outcomes`` ({row: {ratio: [[bool x 3] per query]}}), ``coverage`` ({row:
     {ratio: [min, median] kept points per database image]}}), ``kept_points`` (per unit),
-    ``selecting_rank`` ({row: [per query: [C] number of ratios its candidate points are
-    kept at, or None]}) and ``seconds`` per row.
+    ``selecting_rank`` ({row: [per query: [C] number of the ``SELECTING_GRID`` ratios its
+    candidate points are kept at, or None]}), ``selecting_rank_run`` (the same over the
+    run's own ratios only) and ``seconds`` per row. The grid's summaries are drawn by the
+    same rule and unit but not localized.
     """
     queries, mp = ctx.queries, ctx.map_points
     out = {"outcomes": {}, "coverage": {}, "kept_points": {}, "selecting_rank": {},
-           "seconds": {}}
+           "selecting_rank_run": {}, "seconds": {}}
     bar = tqdm(total=len(ratios) * len(rows), desc=f"seed {ctx.seed} summaries", leave=False,
                disable=not progress)
     for row in rows:
@@ -353,7 +383,9 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
             out["kept_points"][row.name][key] = kept
             write_submission(out_dir / "submissions" / f"{row.name}_{key}.txt", est)
             bar.update()
-        out["selecting_rank"][row.name] = rank
+        out["selecting_rank"][row.name] = selecting_rank(ctx, row, units, SELECTING_GRID,
+                                                         full.candidates)
+        out["selecting_rank_run"][row.name] = rank
         out["seconds"][row.name] = time.perf_counter() - t0
     bar.close()
     return out
@@ -363,7 +395,8 @@ def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMa
                 selecting_rank: Mapping[str, list], models: Mapping[str, object]
                 ) -> tuple[dict, dict]:
     """Stage 8: ``auc`` ({row: {"all": auc, date: auc}}: the row's score, or its selecting
-    rank for a set method) and ``selecting_auc`` ({row: auc} of the selecting rank)."""
+    rank for a set method) and ``selecting_auc`` ({row: auc} of the selecting rank,
+    ``summarize_and_localize``'s over ``SELECTING_GRID``)."""
     queries = ctx.queries
     ok = [i for i, c in enumerate(full.candidates) if c is not None]
     if not ok:
@@ -371,10 +404,9 @@ def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMa
     lab = np.concatenate([full.labels[i] for i in ok])
     day = np.concatenate([np.full(len(full.candidates[i]), queries[i]["date"].toordinal())
                           for i in ok])
-    auc, selecting = {}, {}
+    auc, selecting = {}, selecting_aucs(full, {r.name: selecting_rank[r.name] for r in rows})
     for row in rows:
         ranks = np.concatenate([selecting_rank[row.name][i] for i in ok])
-        selecting[row.name] = inlier_auc(ranks, lab)
         if row.score is None:
             s = ranks
         else:
@@ -389,6 +421,17 @@ def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMa
             sel = day == d.toordinal()
             auc[row.name][d.isoformat()] = inlier_auc(s[sel], lab[sel]) if sel.any() else None
     return auc, selecting
+
+
+def selecting_aucs(full: FullMap, selecting_rank: Mapping[str, list]) -> dict:
+    """{row: inlier AUC of its selecting rank} over the queries with candidates (None if
+    there are none)."""
+    ok = [i for i, c in enumerate(full.candidates) if c is not None]
+    if not ok:
+        return {name: None for name in selecting_rank}
+    lab = np.concatenate([full.labels[i] for i in ok])
+    return {name: inlier_auc(np.concatenate([rank[i] for i in ok]), lab)
+            for name, rank in selecting_rank.items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -457,6 +500,7 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
                       predictors, out_dir, progress=progress)
     timings.update({f"{k}_s": v for k, v in done_rows["seconds"].items()})
     auc, selecting = inlier_aucs(ctx, rows, full, done_rows["selecting_rank"], predictors)
+    selecting_run = selecting_aucs(full, done_rows["selecting_rank_run"])
     mp = world.map_points
     result = {
         "fingerprint": fingerprint,
@@ -487,6 +531,7 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
         "kept_points": done_rows["kept_points"],
         "auc": auc,
         "selecting_auc": selecting,
+        "selecting_auc_run_ratios": selecting_run,
         "auc_positives": {"queries": sum(c is not None for c in full.candidates),
                           "inliers": int(sum(lab.sum() for lab in full.labels
                                              if lab is not None))},

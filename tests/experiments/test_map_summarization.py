@@ -532,3 +532,42 @@ def test_tables_markdown_and_the_bar_from_a_metrics_dict():
     assert report.bar_check(metrics)[0] == "- The bar (met):"
     metrics["paired_interval"]["rp"]["0.5"]["0.5m_5deg"] = [-4.0, -0.5]
     assert "below at 0.5 0.5m_5deg" in report.bar_check(metrics)[1]
+    # A run that also counted its own ratios shows both selecting AUCs; the bar reads the grid's.
+    metrics["selecting_auc_run_ratios"] = {"rp": 0.75, "kcover": 0.55}
+    text = report.tables_markdown(metrics)
+    assert "| RP (recommended) | 0.700 | 0.810 | 0.750 |" in text
+    assert "ratios 5 %, 10 %, ..., 95 % a point is kept at" in text
+    assert "selecting inlier AUC >= 0.8: yes (0.810)" in report.bar_check(metrics)[4]
+
+
+def test_the_selecting_rank_reads_a_top_per_part_rule_over_the_whole_grid():
+    """Twenty points in one part scored 19, 18, ..., 0: over the grid 5 %...95 % pruned the
+    point of rank k is kept at the ratios whose keep count exceeds k, so the selecting rank
+    of points 0..18 is 19..1 and point 19 (kept at none) 0; over the run's ratios 50 % and
+    90 % alone the bottom half is one tie. The AUC reads what the rank says: with points 0
+    and 12 the inliers, the grid rank separates 12 from the points below it."""
+    from experiments.map_summarization import methods, world
+
+    n = 20
+    a = dt.date(2010, 9, 1)
+    ctx = _tiny_context([a], [True], [[]], n_points=n)
+    row = methods.Row("by_score", "by score", "method", "world", methods.top_per_part,
+                      score=lambda ctx, at: np.arange(n, 0, -1, dtype=float))
+    units = [(methods.At(ctx.queries[0]["bucket"], a), [0])]
+    candidates = [np.arange(n)]
+    grid = world.selecting_rank(ctx, row, units, world.SELECTING_GRID, candidates)[0]
+    assert world.SELECTING_GRID[0] == 0.05 and world.SELECTING_GRID[-1] == 0.95
+    np.testing.assert_array_equal(grid, [*range(19, 0, -1), 0])
+    run = world.selecting_rank(ctx, row, units, [0.5, 0.9], candidates)[0]
+    np.testing.assert_array_equal(run, [2, 2] + [1] * 8 + [0] * 10)
+    labels = np.zeros(n, bool)
+    labels[[0, 12]] = True
+    full = world.FullMap([], [], {}, candidates + [None], [labels, None])
+    aucs = world.selecting_aucs(full, {"grid": [grid, None], "run": [run, None]})
+    # Grid: point 0 outranks all 18 negatives, point 12 the 7 below it. Run: point 0 ties
+    # point 1 (0.5) and outranks the 17 below, point 12 ties the 9 others of the bottom
+    # half (4.5).
+    assert aucs["grid"] == pytest.approx((18 + 7) / 36)
+    assert aucs["run"] == pytest.approx((17.5 + 4.5) / 36)
+    # A query without candidates (not localized by the full map) is skipped, not scored.
+    assert world.selecting_rank(ctx, row, units, world.SELECTING_GRID, [None]) == [None]
