@@ -63,6 +63,9 @@ MAPSUM = RESULTS / "map_summarization" / "metrics.json"
 # run on the held-out training slice 6 that chose the recipe of the recommended row.
 MAPSUM_UNSEEN = RESULTS / "map_summarization_unseen_seeds" / "metrics.json"
 MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.json"
+# An earlier run of the default command (another day), kept to show how far the same
+# command moves the figures.
+MAPSUM_PREVIOUS = RESULTS / "map_summarization_previous_run" / "metrics.json"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
@@ -437,6 +440,18 @@ def map_summarization_conditions_tables(metrics: Mapping | None,
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
+def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> str:
+    """The same default command run twice (``report.spread_markdown``), with both captions."""
+    if earlier is None or later is None:
+        return (f"_Two runs of the default command are needed (`{MAPSUM_PREVIOUS.as_posix()}` "
+                f"and `{MAPSUM.as_posix()}`)._\n")
+    from experiments.map_summarization import report
+
+    body = report.spread_markdown(earlier, later).rstrip("\n") + "\n"
+    return (body + f"\nEarlier run: {run_caption(earlier)}.\n\n"
+            f"Later run: {run_caption(later)}.\n")
+
+
 def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTION) -> str:
     """The rule of ``config.map.rp_method`` on the selection run (held-out training slice):
     each candidate row's mean accuracy over the run's ratios at (0.5 m, 5 deg) and
@@ -502,6 +517,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),
     "map_summarization_conditions": lambda root: map_summarization_conditions_tables(
         read_json(root / MAPSUM_CONDITIONS)),
+    "map_summarization_spread": lambda root: map_summarization_spread(
+        read_json(root / MAPSUM_PREVIOUS), read_json(root / MAPSUM)),
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
     "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),

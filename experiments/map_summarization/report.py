@@ -12,11 +12,13 @@ generator calls on a committed ``metrics.json``).
 
 from __future__ import annotations
 
+import statistics
 from collections.abc import Mapping
 
 from experiments import provenance
 
-__all__ = ["bar_check", "markdown", "primary_comparison", "tables_markdown"]
+__all__ = ["bar_check", "markdown", "primary_comparison", "spread_markdown",
+           "tables_markdown"]
 
 ALPHA = 0.05
 PRIMARY_THRESHOLDS = ("0.5m_5deg", "5m_10deg")
@@ -285,6 +287,51 @@ def tables_markdown(metrics: Mapping) -> str:
     lines += [f"| {labels.get(k, k)} | {_fmt(auc.get(k))} | {_fmt(sel.get(k))} |"
               + ("" if run is None else f" {_fmt(run.get(k))} |")
               for k in metrics["methods"]]
+    return "\n".join(lines) + "\n"
+
+
+def spread_markdown(earlier: Mapping, later: Mapping) -> str:
+    """How far two runs of the same command moved (another day or machine, same settings):
+    per primary threshold, each row both runs have at each ratio, earlier -> later accuracy
+    and the change in points; then the full map, the primary comparison (recommended minus
+    K-cover) in each run and the largest and median change. Differences between rows that
+    are smaller than these changes are not claimed. Pure (two ``metrics.json`` dicts)."""
+    labels = _labels(later, None)
+    ratios = [r for r in later["ratios"] if r in earlier["ratios"]]
+    rows = [k for k in later["methods"] if k in earlier["methods"]]
+    changes = []
+    lines = []
+    for th in PRIMARY_THRESHOLDS:
+        lines += [f"Accuracy (%) within {th}: earlier run -> later run (change in points):", ""]
+        lines += _head("row", _pct(ratios))
+        for k in rows:
+            cells = []
+            for r in ratios:
+                a, b = earlier["accuracy"][k][r][th], later["accuracy"][k][r][th]
+                changes.append((abs(b - a), b - a, k, r, th))
+                cells.append(f"{a:.1f} -> {b:.1f} ({b - a:+.1f})")
+            lines.append(f"| {labels.get(k, k)} | " + " | ".join(cells) + " |")
+        lines.append("")
+    full_a, full_b = earlier["full_map_accuracy"], later["full_map_accuracy"]
+    lines.append("- Full map: " + "; ".join(
+        f"{th} {full_a[th]:.1f} -> {full_b[th]:.1f} ({full_b[th] - full_a[th]:+.1f})"
+        for th in PRIMARY_THRESHOLDS) + ".")
+    rec, ref = later.get("recommended", "rp"), later["reference"]
+    if rec in rows and ref in rows:
+        for th in PRIMARY_THRESHOLDS:
+            cells = []
+            for r in ratios:
+                da = earlier["accuracy"][rec][r][th] - earlier["accuracy"][ref][r][th]
+                db = later["accuracy"][rec][r][th] - later["accuracy"][ref][r][th]
+                cells.append(f"{100 * float(r):.0f} % {da:+.1f} -> {db:+.1f}")
+            lines.append(f"- Primary comparison ({rec} minus {ref}) at {th}: "
+                         + "; ".join(cells) + ".")
+    if changes:
+        big = max(changes)
+        med = statistics.median(c[0] for c in changes)
+        lines.append(f"- Largest change {big[1]:+.1f} points ({labels.get(big[2], big[2])}, "
+                     f"{100 * float(big[3]):.0f} %, {big[4]}); median absolute change "
+                     f"{med:.1f} points over {len(changes)} cells.")
     return "\n".join(lines) + "\n"
 
 

@@ -571,3 +571,24 @@ def test_the_selecting_rank_reads_a_top_per_part_rule_over_the_whole_grid():
     assert aucs["run"] == pytest.approx((17.5 + 4.5) / 36)
     # A query without candidates (not localized by the full map) is skipped, not scored.
     assert world.selecting_rank(ctx, row, units, world.SELECTING_GRID, [None]) == [None]
+
+
+def test_the_spread_of_two_runs_of_one_command():
+    """Two runs differing in rp at 90 % (76 -> 79) and K-cover at 50 % (89 -> 88.5), the
+    full map 95 -> 94: each cell and the primary comparison in each run, by hand."""
+    from experiments.map_summarization import report
+
+    earlier, later = _metrics_for_report(), _metrics_for_report()
+    for th in THRESHOLDS:
+        later["accuracy"]["rp"]["0.9"][th] = 79.0
+        later["accuracy"]["kcover"]["0.5"][th] = 88.5
+        later["full_map_accuracy"][th] = 94.0
+    text = report.spread_markdown(earlier, later)
+    assert "| RP (recommended) | 90.0 -> 90.0 (+0.0) | 76.0 -> 79.0 (+3.0) |" in text
+    assert "| K-cover | 89.0 -> 88.5 (-0.5) | 40.0 -> 40.0 (+0.0) |" in text
+    assert "- Full map: 0.5m_5deg 95.0 -> 94.0 (-1.0); 5m_10deg 95.0 -> 94.0 (-1.0)." in text
+    assert ("- Primary comparison (rp minus kcover) at 5m_10deg: 50 % +1.0 -> +1.5; "
+            "90 % +36.0 -> +39.0.") in text
+    # 8 cells (2 rows x 2 ratios x 2 thresholds): 3.0 twice, 0.5 twice, 0 four times.
+    assert ("Largest change +3.0 points (RP (recommended), 90 %, 5m_10deg); median absolute "
+            "change 0.2 points over 8 cells.") in text
