@@ -63,6 +63,9 @@ MAPSUM = RESULTS / "map_summarization" / "metrics.json"
 # run on the held-out training slice 6 that chose the recipe of the recommended row.
 MAPSUM_UNSEEN = RESULTS / "map_summarization_unseen_seeds" / "metrics.json"
 MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.json"
+# The outcome scorer's settings, each validated on the held-out training slice 6
+# (``python -m experiments.map_summarization.outcome_scorer``): one JSON per setting.
+MAPSUM_SCORER_VALIDATION = RESULTS / "map_summarization_scorer_validation"
 # An earlier run of the default command (another day), kept to show how far the same
 # command moves the figures.
 MAPSUM_PREVIOUS = RESULTS / "map_summarization_previous_run" / "metrics.json"
@@ -452,6 +455,38 @@ def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> 
             f"Later run: {run_caption(later)}.\n")
 
 
+def scorer_validation_table(results: Sequence[tuple[str, Mapping]],
+                            path: Path = MAPSUM_SCORER_VALIDATION) -> str:
+    """The outcome scorer's settings validated on a held-out training slice, best first by
+    the mean of the two scorers' pooled inlier AUCs (the rule that chose
+    ``config.map.outcome_*``); one row per ``outcome_scorer_validation.json``."""
+    if not results:
+        return f"_No scorer validation is committed yet (`{path.as_posix()}`)._\n"
+    rows = []
+    try:
+        for name, r in results:
+            auc = r["variants"]["all"]["auc"]
+            st = r["settings"]
+            mean = (auc["outcome"] + auc["outcome_agnostic"]) / 2
+            pairs = r["variants"]["all"]["training"]["pairs_of_correct_queries"]
+            rows.append((mean, name, st, auc, pairs, r))
+    except (KeyError, TypeError) as e:
+        raise ValueError(f"{path}: not the layout this table reads ({e!r})") from e
+    rows.sort(key=lambda x: -x[0])
+    lines = ["| setting | label worlds | training pairs | hidden x depth, epochs | AUC, "
+             "time-aware | AUC, twin | mean |", "|---|---|---:|---|---:|---:|---:|"]
+    for mean, name, st, auc, pairs, _ in rows:
+        lines.append(f"| `{name}` | {', '.join(str(x) for x in st['seeds'])} | {pairs:,} | "
+                     f"{st['hidden']} x {st['depth']}, {st['epochs']} | "
+                     f"{auc['outcome']:.3f} | {auc['outcome_agnostic']:.3f} | {mean:.3f} |")
+    first = rows[0][5]
+    return ("\n".join(lines) + f"\n\nInlier AUC on the labels of slice {first['slice']} of "
+            f"world seeds {first['seeds']} ({first['validation']['pairs']:,} pairs of "
+            f"{first['validation']['queries_correct']} correctly localized queries), the "
+            f"scorers trained without that slice. Run of the first row: "
+            f"{run_caption(first)}.\n")
+
+
 def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTION) -> str:
     """The rule of ``config.map.rp_method`` on the selection run (held-out training slice):
     each candidate row's mean accuracy over the run's ratios at (0.5 m, 5 deg) and
@@ -519,6 +554,9 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM_CONDITIONS)),
     "map_summarization_spread": lambda root: map_summarization_spread(
         read_json(root / MAPSUM_PREVIOUS), read_json(root / MAPSUM)),
+    "map_summarization_scorer_validation": lambda root: scorer_validation_table(
+        [(f.stem, read_json(f)) for f in sorted((root / MAPSUM_SCORER_VALIDATION).glob(
+            "*.json"))]),
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
     "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),

@@ -284,6 +284,30 @@ def test_recipe_selection_ranks_the_candidates_by_their_mean_over_ratios_and_thr
         docs_tables.recipe_selection_table({"methods": ["outcome"], "accuracy": {}})
 
 
+def test_scorer_validation_ranks_the_settings_by_the_mean_of_both_scorers():
+    def result(seeds, hidden, outcome, agnostic, pairs):
+        return {"slice": 6, "seeds": [0, 1, 2],
+                "validation": {"pairs": 5000, "queries_correct": 60},
+                "settings": {"seeds": seeds, "hidden": hidden, "depth": 2, "epochs": 6},
+                "variants": {"all": {"auc": {"outcome": outcome, "outcome_agnostic": agnostic},
+                                     "training": {"pairs_of_correct_queries": pairs}}},
+                "provenance": {"command": "python -m experiments.map_summarization."
+                               "outcome_scorer", "code": "git " + "d" * 40,
+                               "date": "2030-01-01 00:00 UTC", "machine": "a CPU, 2 cores"}}
+
+    # b: the twin better, the time-aware worse than a; the mean decides (0.815 > 0.805).
+    table = docs_tables.scorer_validation_table(
+        [("a", result([0], 64, 0.81, 0.80, 1200)),
+         ("b", result([5, 6, 7], 128, 0.80, 0.83, 3400))]).splitlines()
+    rows = [line for line in table if line.startswith("| `")]
+    assert rows == ["| `b` | 5, 6, 7 | 3,400 | 128 x 2, 6 | 0.800 | 0.830 | 0.815 |",
+                    "| `a` | 0 | 1,200 | 64 x 2, 6 | 0.810 | 0.800 | 0.805 |"]
+    assert "slice 6 of world seeds [0, 1, 2] (5,000 pairs of 60 correctly" in "\n".join(table)
+    assert "No scorer validation" in docs_tables.scorer_validation_table([])
+    with pytest.raises(ValueError, match="not the layout"):
+        docs_tables.scorer_validation_table([("a", {"variants": {}})])
+
+
 def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
     rows = [{"frames": n, "cpu_s": c, "wall_s": 2 * c, "peak_rss_mb": 480.0 + n / 1000,
              "records": 10_000, "load_average_1min": 1.5, "measured_at": "2030-01-01T10:00:00",

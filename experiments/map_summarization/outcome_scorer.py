@@ -69,7 +69,9 @@ LABEL_DIR = "outcome_labels"
 
 @dataclasses.dataclass(frozen=True)
 class ScorerSettings:
-    """How the scorers are trained (fixed before any validation; nothing tuned on slice 8).
+    """How the scorers are trained (chosen on the held-out training slice 6, nothing on
+    slice 8; ``config.map.outcome_*`` sets them in a run, these defaults are the tiny
+    world's).
 
     Attributes:
       seeds: world seeds whose training slices give labels.
@@ -646,7 +648,9 @@ def _feature_aucs(data: _Stack) -> dict[str, float | None]:
 
 def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] = (0,),
              ablation: bool = False, progress: bool = True) -> dict:
-    """The scorers trained without ``slice_id`` (by ``config``), scored on its labels."""
+    """The scorers trained without ``slice_id`` (by ``config``), scored on its labels;
+    the result (AUCs, the scorer's settings, the run's provenance) is also written to
+    ``workdir/outcome_scorer_validation.json``."""
     from experiments.map_summarization.train import train_predictor
     from rp_jax.mapsum.statistics import inlier_auc
 
@@ -692,6 +696,10 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
         "positives": int(stack.labels.inlier.sum()),
     }
     result["timings"] = timings
+    result["settings"] = dataclasses.asdict(settings_of(config))
+    from experiments import provenance
+
+    result["provenance"] = provenance.gather()
     files.write_json(workdir / "outcome_scorer_validation.json", result)
     return result
 
