@@ -66,9 +66,9 @@ MAPSUM_SELECTION = RESULTS / "map_summarization_selection_slice6" / "metrics.jso
 # The outcome scorer's settings, each validated on the held-out training slice 6
 # (``python -m experiments.map_summarization.outcome_scorer``): one JSON per setting.
 MAPSUM_SCORER_VALIDATION = RESULTS / "map_summarization_scorer_validation"
-# An earlier run of the default command (another day), kept to show how far the same
-# command moves the figures.
-MAPSUM_PREVIOUS = RESULTS / "map_summarization_previous_run" / "metrics.json"
+# The default command run twice with the same settings on two days (earlier.json,
+# later.json), kept to show how far the same command moves the figures.
+MAPSUM_SPREAD = RESULTS / "map_summarization_spread"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
@@ -446,8 +446,8 @@ def map_summarization_conditions_tables(metrics: Mapping | None,
 def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> str:
     """The same default command run twice (``report.spread_markdown``), with both captions."""
     if earlier is None or later is None:
-        return (f"_Two runs of the default command are needed (`{MAPSUM_PREVIOUS.as_posix()}` "
-                f"and `{MAPSUM.as_posix()}`)._\n")
+        return (f"_Two runs of one command are needed (`{MAPSUM_SPREAD.as_posix()}/earlier.json` "
+                "and `later.json`)._\n")
     from experiments.map_summarization import report
 
     body = report.spread_markdown(earlier, later).rstrip("\n") + "\n"
@@ -553,7 +553,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "map_summarization_conditions": lambda root: map_summarization_conditions_tables(
         read_json(root / MAPSUM_CONDITIONS)),
     "map_summarization_spread": lambda root: map_summarization_spread(
-        read_json(root / MAPSUM_PREVIOUS), read_json(root / MAPSUM)),
+        read_json(root / MAPSUM_SPREAD / "earlier.json"),
+        read_json(root / MAPSUM_SPREAD / "later.json")),
     "map_summarization_scorer_validation": lambda root: scorer_validation_table(
         [(f.stem, read_json(f)) for f in sorted((root / MAPSUM_SCORER_VALIDATION).glob(
             "*.json"))]),
