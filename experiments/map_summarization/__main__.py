@@ -19,7 +19,10 @@ from experiments import cli
 from experiments.map_summarization.config import get_config
 
 NAME = "map_summarization"
-DEFAULT_SIZE = "small"  # the whole run in under 20 minutes on 2 cores (see README)
+# The first run of the default renders and labels the outcome scorer's 48 label slices
+# (about an hour on 2 cores, cached in the workdir and reused by a re-run; what each
+# stage took: docs/results/map_summarization.md, "Cost").
+DEFAULT_SIZE = "small"
 
 
 def _add_flags(parser: argparse.ArgumentParser) -> None:

@@ -255,10 +255,10 @@ def findings(metrics: Mapping, labels: Mapping[str, str] | None = None) -> list[
 
 def tables_markdown(metrics: Mapping) -> str:
     """The results tables of a run from its ``metrics.json`` dict alone: the primary
-    comparison, then per primary threshold the accuracy table and the paired table, the
-    AUCs. Pure (no config, no files)."""
+    comparison and the bar, part by part, then per primary threshold the accuracy table and
+    the paired table, the AUCs. Pure (no config, no files)."""
     labels = _labels(metrics, None)
-    lines = [*primary_comparison(metrics, labels), ""]
+    lines = [*primary_comparison(metrics, labels), "", *bar_check(metrics), ""]
     full = metrics["full_map_accuracy"]
     for th in PRIMARY_THRESHOLDS:
         lines += [
