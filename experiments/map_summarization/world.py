@@ -315,13 +315,21 @@ def _units(per: str, queries: list[dict]) -> list[tuple[methods.At, list[int]]]:
     return out
 
 
+def _on(ratio: float, ratios: Sequence[float]) -> bool:
+    return any(abs(ratio - r) < 1e-9 for r in ratios)
+
+
 def selecting_rank(ctx: methods.WorldContext, row: methods.Row,
                    units: Sequence[tuple[methods.At, list[int]]], ratios: Sequence[float],
-                   candidates: Sequence[np.ndarray | None]) -> list[np.ndarray | None]:
+                   candidates: Sequence[np.ndarray | None],
+                   start: Sequence[np.ndarray | None] | None = None) -> list[np.ndarray | None]:
     """Per query, the number of ``ratios`` at which each of its ``candidates`` (point rows;
     None: a query without any) is kept in its unit's summary by ``row``'s own rule: the
-    rank of what the row selects, for the selecting AUC."""
-    rank = [None if c is None else np.zeros(len(c), np.int64) for c in candidates]
+    rank of what the row selects, for the selecting AUC. ``start``: counts already made at
+    other ratios (the summaries a run localized), added to."""
+    rank = [None if c is None else (np.zeros(len(c), np.int64) if start is None
+                                    else start[i].copy())
+            for i, c in enumerate(candidates)]
     for ratio in ratios:
         for at, members in units:
             if all(rank[i] is None for i in members):
@@ -355,6 +363,8 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
         t0 = time.perf_counter()
         units = _units(methods.per_of(row, models), queries)
         rank = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
+        # The run's ratios that lie on the grid count there too: drawn once, not again.
+        on_grid = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
         out["outcomes"][row.name], out["coverage"][row.name] = {}, {}
         out["kept_points"][row.name] = {}
         for ratio in ratios:
@@ -374,6 +384,8 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
                     res[i] = success(queries[i]["pose"], e)
                     if rank[i] is not None:
                         rank[i] += keep[full.candidates[i]]
+                        if _on(ratio, SELECTING_GRID):
+                            on_grid[i] += keep[full.candidates[i]]
                 if row.name == "rp" and abs(ratio - 0.5) < 1e-9 and not covs[1:]:
                     write_summary_model(ctx.extra["reconstruction"], mp, keep,
                                         out_dir / "summaries" / f"rp_{key}")
@@ -383,8 +395,9 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
             out["kept_points"][row.name][key] = kept
             write_submission(out_dir / "submissions" / f"{row.name}_{key}.txt", est)
             bar.update()
-        out["selecting_rank"][row.name] = selecting_rank(ctx, row, units, SELECTING_GRID,
-                                                         full.candidates)
+        out["selecting_rank"][row.name] = selecting_rank(
+            ctx, row, units, [r for r in SELECTING_GRID if not _on(r, ratios)],
+            full.candidates, start=on_grid)
         out["selecting_rank_run"][row.name] = rank
         out["seconds"][row.name] = time.perf_counter() - t0
     bar.close()

@@ -560,6 +560,10 @@ def test_the_selecting_rank_reads_a_top_per_part_rule_over_the_whole_grid():
     np.testing.assert_array_equal(grid, [*range(19, 0, -1), 0])
     run = world.selecting_rank(ctx, row, units, [0.5, 0.9], candidates)[0]
     np.testing.assert_array_equal(run, [2, 2] + [1] * 8 + [0] * 10)
+    # Counts made at the run's ratios carry over: the rest of the grid adds the same rank.
+    rest = [r for r in world.SELECTING_GRID if r not in (0.5, 0.9)]
+    np.testing.assert_array_equal(
+        world.selecting_rank(ctx, row, units, rest, candidates, start=[run])[0], grid)
     labels = np.zeros(n, bool)
     labels[[0, 12]] = True
     full = world.FullMap([], [], {}, candidates + [None], [labels, None])
