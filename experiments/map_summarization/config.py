@@ -81,6 +81,7 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.outcome_hidden = 64
     m.outcome_depth = 2
     m.outcome_epochs = 6
+    m.outcome_members = 1 if size == "tiny" else 3  # an ensemble of training seeds
     m.oracle_radius_px = 4.0  # oracle_date: a re-detection within this distance
     m.cell_size_m = 10.0  # ground-plane grid partition (Sec. V-A-2)
     m.up_axis = 2  # world axis pointing up (synthetic: z), for a diagnostic; -1 unknown
@@ -168,7 +169,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
     for field in ("time_bucket_minutes", "max_keypoints", "vlad_words", "num_retrieved",
                   "ransac_iterations", "cmu_rp_epochs", "conditional_epochs",
                   "conditional_hidden", "conditional_harmonics", "outcome_hidden",
-                  "outcome_depth", "outcome_epochs"):
+                  "outcome_depth", "outcome_epochs", "outcome_members"):
         number(field, 1, integer=True)
     number("min_inliers", 4, integer=True)  # a PnP pose needs four points
     for field in ("workers", "kcover_K", "random_seed"):

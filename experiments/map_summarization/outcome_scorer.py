@@ -77,6 +77,9 @@ class ScorerSettings:
       seeds: world seeds whose training slices give labels.
       hidden, depth: the MLP's width and hidden layers.
       epochs, batch_size, learning_rate, weight_decay, seed: AdamW on a cosine schedule.
+      members: scorers trained per kind, member k from seed ``seed + k`` (initialization
+        and batch order); a point's score is the members' mean probability (an ensemble
+        averages out the spread of one training run).
     """
 
     seeds: tuple[int, ...] = (0,)
@@ -87,6 +90,7 @@ class ScorerSettings:
     learning_rate: float = 3e-3
     weight_decay: float = 1e-4
     seed: int = 0
+    members: int = 1
 
 
 def settings_of(config) -> ScorerSettings:
@@ -102,6 +106,7 @@ def settings_of(config) -> ScorerSettings:
         learning_rate=d.learning_rate,
         weight_decay=d.weight_decay,
         seed=int(config.seed),
+        members=int(m.get("outcome_members", d.members)),
     )
 
 
@@ -145,7 +150,7 @@ def training_slices(config, seed: int = 0) -> list[int]:
 
 def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
                     point_rep: Mapping[str, np.ndarray], point_desc: np.ndarray,
-                    point_cat: np.ndarray) -> np.ndarray:
+                    point_cat: np.ndarray, keypoint: np.ndarray | None = None) -> np.ndarray:
     """[P, F] raw point features of a described map (what ``evaluate_world`` builds).
 
     Args:
@@ -157,6 +162,8 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
         saw a CMU slice) is read, so features mean the same on every slice.
       point_desc: [P, 128] mean descriptors.
       point_cat: [P] majority category (-1 unknown).
+      keypoint: [n_obs, 3] the observations' re-detected SIFT size, response and strength
+        rank (``DatabaseObservations.keypoint``).
     """
     from rp_jax.mapsum.outcome_scorer import point_features
     from rp_jax.sources.colmap_model import opencv_camera
@@ -171,7 +178,7 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
         map_points, camera_centres=centres, image_sizes=sizes,
         obs_descriptors=obs_descriptors, point_descriptors=point_desc,
         repeatability={"robotcar": point_rep["robotcar"]}, point_category=point_cat,
-        up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio),
+        keypoint=keypoint, up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio),
         num_retrieved=int(config.map.num_retrieved))
 
 
@@ -276,21 +283,22 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
     mp = map_points_from_reconstruction(rec)
     if mp.num_points == 0:
         raise ValueError(f"{sparse}: the map has no 3D points")
-    if cached is not None and "obs_descriptors" in cached:
+    if cached is not None and "obs_keypoint" in cached:
         # Same labels, newer point features: recomputed from the cached observations.
         obs_desc, obs_rep = cached["obs_descriptors"], cached["obs_repeatability"]
-        obs_cat = cached["obs_category"]
+        obs_cat, obs_kp = cached["obs_category"], cached["obs_keypoint"]
     else:
         obs = describe_observations(rec, mp, root / f"slice{slice_id}" / "database",
                                     predictor, root=root, max_keypoints=m.max_keypoints,
                                     associate_px=m.associate_px, describe_on=m.describe_on,
                                     progress=progress)
         obs_desc, obs_rep, obs_cat = obs.descriptors, obs.repeatability, obs.category
+        obs_kp = obs.keypoint
     described = np.all(np.isfinite(obs_desc), axis=1)
     point_desc = mean_per_point(obs_desc[described], mp.obs_point[described], mp.num_points)
     point_table = map_point_table(config, rec, mp, obs_desc,
                                   {"robotcar": point_repeatability(mp, obs_rep)},
-                                  point_desc, point_categories(mp, obs_cat))
+                                  point_desc, point_categories(mp, obs_cat), obs_kp)
     if cached is not None:
         labels, qtable = OutcomeLabels.load(path), cached["query_table"]
     else:
@@ -318,7 +326,7 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
                             fingerprint=np.asarray(fingerprint),
                             feature_version=np.asarray(FEATURE_VERSION),
                             obs_descriptors=obs_desc, obs_repeatability=obs_rep,
-                            obs_category=obs_cat)
+                            obs_category=obs_cat, obs_keypoint=obs_kp)
     log.info("seed %d slice %d: %d queries (%d correct), %d pairs, %d positives", seed,
              slice_id, labels.num_queries, labels.pose_correct.sum(), labels.num_pairs,
              labels.inlier.sum())
@@ -335,6 +343,7 @@ FEATURE_GROUPS = {
     "descriptor": ("descriptor_spread", "described_share", "distinctiveness",
                    "self_match_share", "self_match_margin", "near_match_share",
                    "near_match_margin", "worst_near_margin"),
+    "keypoint": ("keypoint_",),
     "category": ("category_",),
 }
 
@@ -425,7 +434,8 @@ def _fit_one(kind: str, data: _Stack, settings: ScorerSettings, columns: np.ndar
 
 
 class OutcomeScorers:
-    """The trained scorers of one run: ``point_scores(kind, table, when, image_path)``."""
+    """The trained scorers of one run: ``point_scores(kind, table, when, image_path)``;
+    ``params[kind]`` lists the ensemble's members (``ScorerSettings.members``)."""
 
     def __init__(self, settings: ScorerSettings, nets: dict, params: dict, standardizers: dict,
                  columns: np.ndarray, summary: dict):
@@ -436,12 +446,16 @@ class OutcomeScorers:
                      image_path: Path | None = None) -> np.ndarray:
         """[P] probability that each point is a correct-pose inlier of a query at ``when``
         (the day's weather read beside ``image_path`` where the world records it)."""
-        from rp_jax.mapsum.outcome_scorer import score_points
-
         pstd, qstd = self.standardizers[kind]
         qrow = query_table([when], [image_path or Path("/nonexistent")])[0]
-        return score_points(self.nets[kind], self.params[kind],
-                            pstd(point_table[:, self.columns]), qstd(qrow[None])[0])
+        return self.scores(kind, pstd(point_table[:, self.columns]), qstd(qrow[None])[0])
+
+    def scores(self, kind: str, point_rows: np.ndarray, query_row: np.ndarray) -> np.ndarray:
+        """[n] mean probability of the members of ``kind`` on standardized rows."""
+        from rp_jax.mapsum.outcome_scorer import score_points
+
+        return np.mean([score_points(self.nets[kind], p, point_rows, query_row)
+                        for p in self.params[kind]], axis=0)
 
 
 def _training_data(config, workdir: Path, predictor, settings: ScorerSettings,
@@ -501,26 +515,31 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
     for kind in KINDS:
         nets[kind] = OutcomeScorer(hidden=settings.hidden, depth=settings.depth,
                                    time_aware=kind == "outcome")
-        file = out / f"{kind}.msgpack"
-        if prev is not None and prev.get("asked") == asked and file.is_file():
+        member_files = [out / f"{kind}_{k}.msgpack" for k in range(settings.members)]
+        if (prev is not None and prev.get("asked") == asked
+                and all(f.is_file() for f in member_files)):
             import jax
 
             from rp_jax.mapsum.outcome_scorer import create_train_state
 
-            template = create_train_state(nets[kind], int(columns.sum()),
-                                          data.queries.shape[1]).params
-            params[kind] = serialization.from_bytes(jax.device_get(template),
-                                                    file.read_bytes())
+            template = jax.device_get(create_train_state(nets[kind], int(columns.sum()),
+                                                         data.queries.shape[1]).params)
+            params[kind] = [serialization.from_bytes(template, f.read_bytes())
+                            for f in member_files]
             s = prev["standardizers"][kind]
             stds[kind] = (Standardizer.from_dict(s["point"]), Standardizer.from_dict(s["query"]))
             history[kind] = prev["history"][kind]
             continue
         tic = time.perf_counter()
-        params[kind], pstd, qstd, history[kind] = _fit_one(kind, data, settings, columns,
-                                                           progress)
-        stds[kind] = (pstd, qstd)
+        params[kind], history[kind] = [], []
+        for k, file in enumerate(member_files):
+            member = dataclasses.replace(settings, seed=settings.seed + k)
+            p, pstd, qstd, h = _fit_one(kind, data, member, columns, progress)
+            params[kind].append(p)
+            history[kind].append(h)
+            files.write_bytes(file, serialization.to_bytes(p))
+        stds[kind] = (pstd, qstd)  # the same for every member: fit on the same pairs
         summary[f"{kind}_train_s"] = round(time.perf_counter() - tic, 1)
-        files.write_bytes(file, serialization.to_bytes(params[kind]))
     files.write_json(fit_json, {
         "asked": asked,
         "summary": summary,
@@ -568,7 +587,7 @@ def _world_scores(kind: str):
         table = ctx.cached("outcome_point_table", lambda: map_point_table(
             ctx.config, ctx.extra["reconstruction"], ctx.map_points, obs.descriptors,
             ctx.extra["point_rep"], ctx.point_descriptors,
-            point_categories(ctx.map_points, obs.category)))
+            point_categories(ctx.map_points, obs.category), obs.keypoint))
         first: dict = {}
         for q in ctx.queries:
             first.setdefault(q["bucket"], q["image_path"])
@@ -609,15 +628,13 @@ def pair_scores(scorers: OutcomeScorers, kind: str, labels: OutcomeLabels,
                 point_table: np.ndarray, query_rows: np.ndarray) -> np.ndarray:
     """[n] score of every pair of ``labels`` (NaN for queries not localized within
     (5 m, 10 deg)), each point scored at its query's conditions."""
-    from rp_jax.mapsum.outcome_scorer import score_points
 
     pstd, qstd = scorers.standardizers[kind]
     ptab = pstd(point_table[:, scorers.columns])
     score = np.full(labels.num_pairs, np.nan)
     for q in np.flatnonzero(labels.pose_correct):
         sel = labels.query == q
-        score[sel] = score_points(scorers.nets[kind], scorers.params[kind],
-                                  ptab[labels.point[sel]], qstd(query_rows[q:q + 1])[0])
+        score[sel] = scorers.scores(kind, ptab[labels.point[sel]], qstd(query_rows[q:q + 1])[0])
     return score
 
 

@@ -63,10 +63,14 @@ class DatabaseObservations:
       image_descriptors: image name -> [n, 128] every SIFT descriptor of the image (VLAD).
       associated: [n_obs] bool, the observation has a descriptor.
       more_repeatability: name -> [n_obs, T_name] of the other predictors.
+      keypoint: [n_obs, 3] the associated SIFT keypoint's size (pixels), response and
+        strength rank in its image (0 = strongest, 1 = weakest of the ``max_keypoints``
+        kept); NaN rows where no keypoint was associated.
     """
 
     def __init__(
-        self, repeatability, descriptors, category, image_descriptors, more_repeatability=None
+        self, repeatability, descriptors, category, image_descriptors, more_repeatability=None,
+        keypoint=None,
     ):
         self.repeatability = repeatability
         self.more_repeatability = dict(more_repeatability or {})
@@ -74,6 +78,8 @@ class DatabaseObservations:
         self.category = category
         self.image_descriptors = image_descriptors
         self.associated = np.all(np.isfinite(descriptors), axis=1)
+        self.keypoint = (np.full((len(descriptors), 3), np.nan, np.float32) if keypoint is None
+                         else np.asarray(keypoint, np.float32))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -271,6 +277,7 @@ def describe_observations(
     more_rep = {k: np.full((n_obs, v.num_timestamps), np.nan, np.float32) for k, v in more.items()}
     desc = np.full((n_obs, 128), np.nan, np.float32)
     cat = np.full(n_obs, categories.UNKNOWN, np.int64)
+    keypoint = np.full((n_obs, 3), np.nan, np.float32)
     image_desc: dict[str, np.ndarray] = {}
     for image in map_images(rec, map_points, image_dir, capture_time, every_image=True,
                             progress=progress):
@@ -294,6 +301,9 @@ def describe_observations(
             )
             ok = np.isfinite(d)
             desc[sel[ok]] = feats.descriptor[k[ok]]
+            # Features are sorted by decreasing response: the index is the strength rank.
+            keypoint[sel[ok]] = np.stack([feats.size[k[ok]], feats.response[k[ok]],
+                                          k[ok] / max(len(feats) - 1, 1)], 1)
         seg = _category_map(root, image.path)
         if seg is not None:
             # The segmentation is of the image on disk (distorted): use the keypoint there.
@@ -303,7 +313,7 @@ def describe_observations(
             cat[sel] = np.where(c == categories.UNLABELLED_PIXEL, categories.UNKNOWN, c)
     if np.isnan(rep).any():
         raise ValueError("some observations reference images missing from the model")
-    return DatabaseObservations(rep, desc, cat, image_desc, more_rep)
+    return DatabaseObservations(rep, desc, cat, image_desc, more_rep, keypoint)
 
 
 def point_categories(map_points: MapPoints, obs_category: np.ndarray) -> np.ndarray:

@@ -49,11 +49,13 @@ from rp_jax.mapsum.kcover import distinctiveness_weights
 from rp_jax.sources.colmap_model import MapPoints
 
 __all__ = [
+    "KEYPOINT_FEATURES",
     "QUERY_FEATURES",
     "OutcomeScorer",
     "Standardizer",
     "bce_loss",
     "create_train_state",
+    "keypoint_columns",
     "point_feature_names",
     "point_features",
     "query_features",
@@ -63,8 +65,11 @@ __all__ = [
 ]
 
 # Bump when point_features or query_features change: cached tables are recomputed.
-FEATURE_VERSION = 2
+FEATURE_VERSION = 3
 SIFT_NORM = 512.0  # OpenCV SIFT descriptors are scaled to norm ~512
+# The reference keypoints' SIFT scale and strength (``keypoint_columns``).
+KEYPOINT_FEATURES = ("keypoint_log_size", "keypoint_log_size_max", "keypoint_log_response",
+                     "keypoint_strength_rank", "keypoint_strength_rank_min")
 # Category slots of the one-hot: the six known categories and "unknown".
 _CATEGORY_IDS = sorted(categories.NAMES)
 
@@ -156,9 +161,47 @@ def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
     names += ["image_x", "image_y", "log_track_length", "log_depth", "view_angle_spread",
               "height", "descriptor_spread", "described_share", "distinctiveness",
               "self_match_share", "self_match_margin", "near_match_share",
-              "near_match_margin", "worst_near_margin"]
+              "near_match_margin", "worst_near_margin", *KEYPOINT_FEATURES]
     names += [f"category_{categories.NAMES[c]}" for c in _CATEGORY_IDS] + ["category_unknown"]
     return names
+
+
+def keypoint_columns(map_points: MapPoints, keypoint: np.ndarray | None) -> np.ndarray:
+    """[P, 5] the point's reference keypoints (columns ``KEYPOINT_FEATURES``): mean and
+    largest log SIFT size, mean log response, mean and best strength rank (0 = the image's
+    strongest keypoint).
+
+    Why: a query re-detects a point only if the detector fires there again under other
+    light and season, and coarser, stronger blobs survive such change better (Mikolajczyk
+    and Schmid's repeatability studies, IJCV 2005; the strongest ``max_keypoints`` are
+    kept per query, so a weak reference keypoint falls out first when contrast drops).
+    What they add was measured on the held-out training slice 6
+    (docs/results/map_summarization.md, "How the outcome scorer's settings were chosen").
+    Unknown values (no associated keypoint) are 0.
+    """
+    n = map_points.num_points
+    out = np.zeros((n, len(KEYPOINT_FEATURES)))
+    if keypoint is None:
+        return out
+    kp = np.asarray(keypoint, np.float64).reshape(-1, 3)
+    if len(kp) != map_points.num_observations:
+        raise ValueError(f"keypoint has {len(kp)} rows, expected one per observation "
+                         f"({map_points.num_observations})")
+    ok = np.all(np.isfinite(kp), axis=1) & (kp[:, 0] > 0) & (kp[:, 1] > 0)
+    if not ok.any():
+        return out
+    pt = map_points.obs_point[ok]
+    count = np.bincount(pt, minlength=n)
+    has = count > 0
+    log_size, log_resp, rank = np.log(kp[ok, 0]), np.log(kp[ok, 1]), kp[ok, 2]
+    for j, v in ((0, log_size), (2, log_resp), (3, rank)):
+        out[has, j] = (np.bincount(pt, weights=v, minlength=n) / np.maximum(count, 1))[has]
+    size_max = np.full(n, -np.inf)
+    np.maximum.at(size_max, pt, log_size)
+    rank_min = np.full(n, np.inf)
+    np.minimum.at(rank_min, pt, rank)
+    out[has, 1], out[has, 4] = size_max[has], rank_min[has]
+    return out
 
 
 def point_features(
@@ -170,6 +213,7 @@ def point_features(
     point_descriptors: np.ndarray,
     repeatability: Mapping[str, np.ndarray],
     point_category: np.ndarray | None = None,
+    keypoint: np.ndarray | None = None,
     up_axis: int = 2,
     ratio: float = 0.8,
     num_retrieved: int = 5,
@@ -184,6 +228,9 @@ def point_features(
       point_descriptors: [P, 128] mean descriptor per point (NaN rows: none).
       repeatability: name -> [P, T] the point's RP vector (``point_repeatability``).
       point_category: [P] semantic class (``point_categories``; -1 or None: unknown).
+      keypoint: [n_obs, 3] each observation's re-detected SIFT keypoint: size, response,
+        strength rank in its image (``DatabaseObservations.keypoint``; NaN rows or None:
+        unknown); see ``keypoint_columns``.
       up_axis: world axis pointing up (-1: unknown; the height is then 0).
       ratio: Lowe's ratio of localization's 2D-3D matching (``self_matching``).
       num_retrieved: images retrieved per query in localization: the ``near_*`` columns
@@ -256,6 +303,7 @@ def point_features(
         np.nan_to_num(share)[:, None], np.nan_to_num(margin, nan=2.0)[:, None],
         np.nan_to_num(near_share)[:, None], np.nan_to_num(near_margin, nan=2.0)[:, None],
         np.nan_to_num(worst, nan=2.0)[:, None],
+        keypoint_columns(mp, keypoint),
         onehot.astype(np.float64),
     ]
     out = np.concatenate(cols, axis=1)
