@@ -459,7 +459,9 @@ def scorer_validation_table(results: Sequence[tuple[str, Mapping]],
                             path: Path = MAPSUM_SCORER_VALIDATION) -> str:
     """The outcome scorer's settings validated on a held-out training slice, best first by
     the mean of the two scorers' pooled inlier AUCs (the rule that chose
-    ``config.map.outcome_*``); one row per ``outcome_scorer_validation.json``."""
+    ``config.map.outcome_*``); one row per ``outcome_scorer_validation.json``. Point
+    features: the columns the scorers read (``feature_auc``'s); members: the ensemble's
+    size (1 where a result predates ensembles)."""
     if not results:
         return f"_No scorer validation is committed yet (`{path.as_posix()}`)._\n"
     rows = []
@@ -473,11 +475,14 @@ def scorer_validation_table(results: Sequence[tuple[str, Mapping]],
     except (KeyError, TypeError) as e:
         raise ValueError(f"{path}: not the layout this table reads ({e!r})") from e
     rows.sort(key=lambda x: -x[0])
-    lines = ["| setting | label worlds | training pairs | hidden x depth, epochs | AUC, "
-             "time-aware | AUC, twin | mean |", "|---|---|---:|---|---:|---:|---:|"]
-    for mean, name, st, auc, pairs, _ in rows:
+    lines = ["| setting | label worlds | training pairs | point features | hidden x depth, "
+             "epochs | members | AUC, time-aware | AUC, twin | mean |",
+             "|---|---|---:|---:|---|---:|---:|---:|---:|"]
+    for mean, name, st, auc, pairs, r in rows:
         lines.append(f"| `{name}` | {', '.join(str(x) for x in st['seeds'])} | {pairs:,} | "
+                     f"{len(r.get('feature_auc', {})) or '?'} | "
                      f"{st['hidden']} x {st['depth']}, {st['epochs']} | "
+                     f"{st.get('members', 1)} | "
                      f"{auc['outcome']:.3f} | {auc['outcome_agnostic']:.3f} | {mean:.3f} |")
     first = rows[0][5]
     return ("\n".join(lines) + f"\n\nInlier AUC on the labels of slice {first['slice']} of "

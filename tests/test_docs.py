@@ -288,7 +288,9 @@ def test_scorer_validation_ranks_the_settings_by_the_mean_of_both_scorers():
     def result(seeds, hidden, outcome, agnostic, pairs):
         return {"slice": 6, "seeds": [0, 1, 2],
                 "validation": {"pairs": 5000, "queries_correct": 60},
-                "settings": {"seeds": seeds, "hidden": hidden, "depth": 2, "epochs": 6},
+                "settings": {"seeds": seeds, "hidden": hidden, "depth": 2, "epochs": 6,
+                             **({"members": 3} if hidden == 128 else {})},
+                "feature_auc": {f"f{i}": 0.5 for i in range(30 + hidden // 64)},
                 "variants": {"all": {"auc": {"outcome": outcome, "outcome_agnostic": agnostic},
                                      "training": {"pairs_of_correct_queries": pairs}}},
                 "provenance": {"command": "python -m experiments.map_summarization."
@@ -300,8 +302,8 @@ def test_scorer_validation_ranks_the_settings_by_the_mean_of_both_scorers():
         [("a", result([0], 64, 0.81, 0.80, 1200)),
          ("b", result([5, 6, 7], 128, 0.80, 0.83, 3400))]).splitlines()
     rows = [line for line in table if line.startswith("| `")]
-    assert rows == ["| `b` | 5, 6, 7 | 3,400 | 128 x 2, 6 | 0.800 | 0.830 | 0.815 |",
-                    "| `a` | 0 | 1,200 | 64 x 2, 6 | 0.810 | 0.800 | 0.805 |"]
+    assert rows == ["| `b` | 5, 6, 7 | 3,400 | 32 | 128 x 2, 6 | 3 | 0.800 | 0.830 | 0.815 |",
+                    "| `a` | 0 | 1,200 | 31 | 64 x 2, 6 | 1 | 0.810 | 0.800 | 0.805 |"]
     assert "slice 6 of world seeds [0, 1, 2] (5,000 pairs of 60 correctly" in "\n".join(table)
     assert "No scorer validation" in docs_tables.scorer_validation_table([])
     with pytest.raises(ValueError, match="not the layout"):

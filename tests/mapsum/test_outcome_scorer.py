@@ -8,10 +8,12 @@ import pytest
 
 from rp_jax.mapsum import MapPoints, point_descriptors
 from rp_jax.mapsum.outcome_scorer import (
+    KEYPOINT_FEATURES,
     QUERY_FEATURES,
     OutcomeScorer,
     Standardizer,
     create_train_state,
+    keypoint_columns,
     point_feature_names,
     point_features,
     query_features,
@@ -172,3 +174,33 @@ def test_feature_groups_cover_every_column_once():
     in_group = dropped.sum(0).tolist()
     assert all(n == 1 for n in in_group), dict(zip(names, in_group, strict=True))
     assert driver.columns_without(names, []).all()
+
+
+def test_keypoint_columns_by_hand():
+    # Point 0: two observations; point 1: one observation without an associated keypoint.
+    mp = MapPoints(xyz=np.zeros((2, 3)), point3D_ids=np.array([1, 2]),
+                   obs_point=np.array([0, 0, 1]), obs_image_id=np.array([1, 2, 1]),
+                   obs_point2D_idx=np.array([0, 0, 1]), obs_xy=np.zeros((3, 2)))
+    kp = np.array([[2.0, 0.1, 0.5], [4.0, 0.4, 0.2], [np.nan, np.nan, np.nan]])
+    got = keypoint_columns(mp, kp)
+    assert got.shape == (2, len(KEYPOINT_FEATURES))
+    np.testing.assert_allclose(got[0], [(np.log(2) + np.log(4)) / 2, np.log(4),
+                                        (np.log(0.1) + np.log(0.4)) / 2, 0.35, 0.2])
+    np.testing.assert_array_equal(got[1], 0.0)  # unknown: 0, as every other feature
+    np.testing.assert_array_equal(keypoint_columns(mp, None), 0.0)
+    with pytest.raises(ValueError, match="one per observation"):
+        keypoint_columns(mp, kp[:2])
+
+
+def test_point_features_carry_the_keypoint_columns():
+    mp, obs_desc, centres, sizes = _tiny_map()
+    rng = np.random.default_rng(2)
+    kp = np.stack([rng.uniform(2, 20, mp.num_observations),
+                   rng.uniform(0.01, 0.1, mp.num_observations),
+                   rng.uniform(0, 1, mp.num_observations)], 1)
+    f = point_features(mp, camera_centres=centres, image_sizes=sizes, obs_descriptors=obs_desc,
+                       point_descriptors=point_descriptors(mp, obs_desc),
+                       repeatability={"robotcar": np.zeros((mp.num_points, 9))}, keypoint=kp)
+    names = point_feature_names({"robotcar": 9})
+    cols = [names.index(n) for n in KEYPOINT_FEATURES]
+    np.testing.assert_allclose(f[:, cols], keypoint_columns(mp, kp), rtol=1e-6)
