@@ -512,6 +512,7 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
     fit_json = out / "fit.json"
     prev = json.loads(fit_json.read_text()) if fit_json.is_file() else None
     nets, params, stds, history = {}, {}, {}, {}
+    trained = False
     for kind in KINDS:
         nets[kind] = OutcomeScorer(hidden=settings.hidden, depth=settings.depth,
                                    time_aware=kind == "outcome")
@@ -531,6 +532,7 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
             history[kind] = prev["history"][kind]
             continue
         tic = time.perf_counter()
+        trained = True
         params[kind], history[kind] = [], []
         for k, file in enumerate(member_files):
             member = dataclasses.replace(settings, seed=settings.seed + k)
@@ -540,13 +542,14 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
             files.write_bytes(file, serialization.to_bytes(p))
         stds[kind] = (pstd, qstd)  # the same for every member: fit on the same pairs
         summary[f"{kind}_train_s"] = round(time.perf_counter() - tic, 1)
-    files.write_json(fit_json, {
-        "asked": asked,
-        "summary": summary,
-        "history": history,
-        "standardizers": {k: {"point": stds[k][0].to_dict(), "query": stds[k][1].to_dict()}
-                          for k in KINDS},
-    })
+    if trained:  # a run that only loads leaves the file (and its training times) alone
+        files.write_json(fit_json, {
+            "asked": asked,
+            "summary": summary,
+            "history": history,
+            "standardizers": {k: {"point": stds[k][0].to_dict(), "query": stds[k][1].to_dict()}
+                              for k in KINDS},
+        })
     return OutcomeScorers(settings, nets, params, stds, columns,
                           {**summary, "history": history})
 
