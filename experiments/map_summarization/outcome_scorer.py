@@ -676,8 +676,11 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
 
     if int(slice_id) == TEST_SLICE:
         raise ValueError(f"slice {TEST_SLICE} is the test slice: nothing is validated on it")
+    from experiments.map_summarization.config import validate as check_config
+
     config = config.copy_and_resolve_references()
     config.map.slice = int(slice_id)
+    check_config(config, workdir)  # a bad field fails at once, not after the labelling
     tic = time.perf_counter()
     predictor, _ = train_predictor(config, workdir / "rp", progress=progress)
     timings = {"rp_s": round(time.perf_counter() - tic, 1)}

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pytest
 
 from experiments.map_summarization import outcome_scorer as eo
 from experiments.map_summarization.config import get_config
@@ -43,3 +44,11 @@ def test_an_ensemble_scores_the_mean_probability_of_its_members():
     each = [score_points(net, p, pstd(table), qrow) for p in members]
     assert not np.allclose(each[0], each[1])  # two members that differ
     np.testing.assert_allclose(got, (each[0] + each[1]) / 2, rtol=1e-6)
+
+
+def test_validation_refuses_a_bad_field_before_any_work(tmp_path):
+    config = get_config("tiny")
+    config.map.outcome_members = 0
+    with pytest.raises(ValueError, match="outcome_members"):
+        eo.validate(config, tmp_path / "run", slice_id=6, progress=False)
+    assert not (tmp_path / "run" / "outcome_labels").exists()
