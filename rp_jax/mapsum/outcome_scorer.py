@@ -46,7 +46,7 @@ from flax.training import train_state
 
 from rp_jax import categories
 from rp_jax.mapsum.kcover import distinctiveness_weights
-from rp_jax.sources.colmap_model import MapPoints
+from rp_jax.sources.colmap_model import MapPoints, mean_per_point
 
 __all__ = [
     "KEYPOINT_FEATURES",
@@ -191,11 +191,10 @@ def keypoint_columns(map_points: MapPoints, keypoint: np.ndarray | None) -> np.n
     if not ok.any():
         return out
     pt = map_points.obs_point[ok]
-    count = np.bincount(pt, minlength=n)
-    has = count > 0
+    has = np.bincount(pt, minlength=n) > 0
     log_size, log_resp, rank = np.log(kp[ok, 0]), np.log(kp[ok, 1]), kp[ok, 2]
-    for j, v in ((0, log_size), (2, log_resp), (3, rank)):
-        out[has, j] = (np.bincount(pt, weights=v, minlength=n) / np.maximum(count, 1))[has]
+    out[:, [0, 2, 3]] = mean_per_point(np.stack([log_size, log_resp, rank], 1), pt, n,
+                                       empty_value=0.0)
     size_max = np.full(n, -np.inf)
     np.maximum.at(size_max, pt, log_size)
     rank_min = np.full(n, np.inf)
