@@ -21,12 +21,24 @@ re-detection in the other queries of the query's own traversal (the query left o
 same condition, minutes apart) and ``oracle_agnostic`` by as many queries drawn from the
 other traversals. The two oracles differ only in whether they know the query's condition.
 
-The rows are those that need no trained model: K-cover, random, most observed, maplab and
-the oracles. **Primary comparison**: ``oracle_date`` against ``oracle_agnostic`` on the
-night conditions (night, night-rain) at 80 % and 90 % pruned, at (0.5 m, 5 deg) and (5 m,
-10 deg), judged by the 95 % interval of the paired difference from a bootstrap of whole
-(world seed, condition) clusters: does knowing the condition keep what localizes a night
-query, independently of any learned method? Everything else is exploratory.
+The rows: K-cover, random, most observed, maplab, the oracles, and the outcome scorer
+(``rp_jax.mapsum.outcome_scorer``: a point's probability of being a PnP inlier of a correct
+pose) at the query's time (``outcome_top``) and its time-agnostic twin
+(``outcome_agnostic_top``), each keeping its best points per 10 m cell. The scorers learn
+from other worlds of the same layout (``config.map.outcome_seeds``, never an evaluated seed;
+``layout_outcomes.py``): each label world's nine traversals localized on its own reference
+map. Their point features are those of the CMU-like scorer without the RP columns (the
+paper's RobotCar RP covers 9:00-17:00 only, T = 9); their query features are the time of
+day and year and the sun at Oxford (the weather columns unknown). With ``config.map.root``
+(one given world) the outcome rows are left out.
+
+**Primary comparison**: ``oracle_date`` against ``oracle_agnostic`` on the night conditions
+(night, night-rain) at 80 % and 90 % pruned, at (0.5 m, 5 deg) and (5 m, 10 deg), judged by
+the 95 % interval of the paired difference from a bootstrap of whole (world seed, condition)
+clusters: does knowing the condition keep what localizes a night
+query, independently of any learned method? Everything else is exploratory, among it the
+issue's second question: the time-aware scorer against its twin and against K-cover, per
+condition group (``contrasts``).
 """
 
 from __future__ import annotations
@@ -42,7 +54,7 @@ import ml_collections
 import numpy as np
 
 from experiments import provenance, run_files
-from experiments.map_summarization import methods
+from experiments.map_summarization import layout_outcomes, methods
 from experiments.map_summarization.config import get_config as mapsum_config
 from experiments.map_summarization.pooling import MAIN_THRESHOLD, THRESHOLD_KEYS, pool
 from experiments.map_summarization.queries import bucket, describe_query
@@ -58,13 +70,18 @@ from rp_jax.progress import bar as tqdm  # the one progress helper
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
 from rp_jax.sources.synthetic import presets
+from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
 
-__all__ = ["CONDITION_GROUPS", "PRIMARY_GROUP", "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS",
-           "get_config", "markdown", "query_evidence", "restricted", "run", "tables_markdown",
-           "validate"]
+__all__ = ["BASE_ROWS", "CONDITION_GROUPS", "CONTRASTS", "OUTCOME_ROWS", "PRIMARY_GROUP",
+           "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS", "contrasts", "get_config", "markdown",
+           "query_evidence", "restricted", "rows_of", "run", "tables_markdown", "validate"]
 
-# The rows that need no trained model (``methods.py``).
-ROWS = (*methods.BASELINES, *methods.ORACLE_ROWS)
+# The rows that need no trained model (``methods.py``), then the outcome scorer's.
+BASE_ROWS = (*methods.BASELINES, *methods.ORACLE_ROWS)
+OUTCOME_ROWS = ("outcome_top", "outcome_agnostic_top")
+ROWS = (*BASE_ROWS, *OUTCOME_ROWS)
+# Exploratory paired comparisons beside K-cover's: (row, against).
+CONTRASTS = (("outcome_top", "outcome_agnostic_top"),)
 # The conditions by their light: both nights are lit by street lamps and windows only
 # (the sun 20 deg below the horizon at their start), dawn and dusk by a low sun (about
 # 7 deg; rp_jax.sources.robotcar_seasons.TRAVERSALS), the rest by day.
@@ -93,12 +110,17 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     ``map`` fields set the localization and the rows) with this experiment's own fields:
     ``map.seeds`` (five world seeds: the primary comparison's clusters are (seed,
     condition) pairs, two night conditions each), ``map.conditions`` (the query conditions;
-    empty = every one the layout has) and ``map.root`` (a RobotCar-Seasons-like layout to
-    use instead of the synthetic world)."""
+    empty = every one the layout has), ``map.root`` (a RobotCar-Seasons-like layout to
+    use instead of the synthetic world), ``map.outcome_seeds`` (the outcome scorer's label
+    worlds, disjoint from ``map.seeds``) and ``map.outcome_batch_size``."""
     config = mapsum_config(size)
     m = config.map
     m.seeds = (0,) if size == "tiny" else (0, 1, 2, 3, 4)
     m.conditions = ()
+    # The outcome scorer's label worlds: seeds of the same layout never evaluated.
+    m.outcome_seeds = (1,) if size == "tiny" else (5, 6, 7, 8, 9)
+    # A tiny label world has a few hundred pairs (27 queries): small batches.
+    m.outcome_batch_size = 128 if size == "tiny" else 4096
     return config
 
 
@@ -120,6 +142,16 @@ def validate(config: ml_collections.ConfigDict) -> None:
     expect(isinstance(m.ratios, (tuple, list)) and len(m.ratios) > 0
            and all(isinstance(r, (int, float)) and 0 < r < 1 for r in m.ratios), "ratios",
            "one or more pruned fractions in (0, 1), e.g. (0.5, 0.9)")
+    expect(isinstance(m.outcome_batch_size, int) and m.outcome_batch_size > 0,
+           "outcome_batch_size", "a positive integer (training pairs per step)")
+    if not m.root:
+        layout_outcomes.label_seeds(config)  # disjoint from the evaluated seeds
+
+
+def rows_of(config) -> tuple[str, ...]:
+    """The rows of a run: every one, less the outcome rows on a given layout (one world:
+    no other world to learn from)."""
+    return BASE_ROWS if config.map.root else ROWS
 
 
 # ----------------------------------------------------------------------------- the layout
@@ -247,9 +279,10 @@ def _subset(per_seed: Sequence[Mapping], conditions: Sequence[str], ratios) -> d
     if not any(any(s["queries"]["posed"]) for s in sub):
         return None
     pooled = pool(sub, ratios)
-    return {k: pooled[k] for k in ("queries", "accuracy", "interval", "paired",
-                                   "paired_interval", "oracle_date_vs_agnostic",
-                                   "full_map_accuracy")}
+    return {**{k: pooled[k] for k in ("queries", "accuracy", "interval", "paired",
+                                      "paired_interval", "oracle_date_vs_agnostic",
+                                      "full_map_accuracy")},
+            "contrasts": contrasts(sub, ratios, list(sub[0]["outcomes"]))}
 
 
 EVIDENCE = ("keypoints", "redetected", "full_map_matches", "full_map_inliers")
@@ -306,15 +339,57 @@ def primary(metrics: Mapping) -> dict:
 # ----------------------------------------------------------------------------- run
 
 
-def _fingerprint(config) -> str:
+def _fingerprint(config, scorers=None) -> str:
     """What makes one seed's outcomes: the map settings (less the seed list), the layout,
-    the world version that renders it, the rows and the version of their rules."""
+    the world version that renders it, the rows and the version of their rules, and the
+    trained scorers' weights."""
+    import jax
+
     settings = config.map.to_dict()
     settings.pop("seeds", None)
-    settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(ROWS), result_version=RESULT_VERSION,
+    settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(rows_of(config)),
+                    result_version=RESULT_VERSION,
                     world=presets.world_version("robotcar_seasons"))
-    text = json.dumps(settings, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
+    if scorers is not None:
+        for leaf in jax.tree_util.tree_leaves(scorers.params):
+            h.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def contrasts(per_seed: Sequence[Mapping], ratios, rows: Sequence[str]) -> dict:
+    """Each of ``CONTRASTS`` whose rows ran: row - against, in points, per ratio and
+    threshold, with the 95 % interval from a bootstrap of whole (world seed, condition)
+    clusters and the queries only one of them localizes (exploratory)."""
+    from rp_jax.mapsum.statistics import clustered_paired_interval, paired_counts
+
+    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
+    if not posed.any():
+        return {}
+    clusters = np.concatenate([[f"{s['seed']}/{d}" for d in s["queries"]["dates"]]
+                               for s in per_seed])[posed]
+
+    def stacked(row: str, ratio: str) -> np.ndarray:
+        return np.concatenate([np.asarray(s["outcomes"][row][ratio], bool).reshape(
+            -1, len(THRESHOLD_KEYS)) for s in per_seed])[posed]
+
+    out = {}
+    for a_row, b_row in CONTRASTS:
+        if a_row not in rows or b_row not in rows:
+            continue
+        cells: dict = {}
+        for r in ratios:
+            a, b = stacked(a_row, r), stacked(b_row, r)
+            cells[r] = {}
+            for j, th in enumerate(THRESHOLD_KEYS):
+                only_a, only_b = paired_counts(a[:, j], b[:, j])
+                lo, hi = clustered_paired_interval(a[:, j], b[:, j], clusters, seed=0)
+                cells[r][th] = {"difference": round(100.0 * float(a[:, j].mean()
+                                                                  - b[:, j].mean()), 2),
+                                "interval": [round(lo, 2), round(hi, 2)],
+                                "only_row": only_a, "only_against": only_b}
+        out[f"{a_row} - {b_row}"] = cells
+    return out
 
 
 def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
@@ -328,18 +403,28 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     m = config.map
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
-    fingerprint = _fingerprint(config)
+    rows = rows_of(config)
     seeds = [0] if m.root else [int(s) for s in m.seeds]
     timings: dict[str, float] = {}
+    predictors: dict = {}
+    scorers = None
+    if any(k in rows for k in OUTCOME_ROWS):
+        tic = time.perf_counter()
+        scorers = layout_outcomes.train_layout_scorers(
+            config, ROBOTCAR_SEASONS, workdir, place=ROBOTCAR_LOCATION, progress=progress)
+        predictors = {"outcome": scorers, "outcome_agnostic": scorers}
+        timings["outcome_scorers_s"] = round(time.perf_counter() - tic, 2)
+    fingerprint = _fingerprint(config, scorers)
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()
-        per_seed.append(evaluate_world(config, seed, {}, workdir / f"seed{seed}",
+        per_seed.append(evaluate_world(config, seed, predictors, workdir / f"seed{seed}",
                                        fingerprint=fingerprint, progress=progress,
-                                       layout=ROBOTCAR_SEASONS, row_names=ROWS))
+                                       layout=ROBOTCAR_SEASONS, row_names=rows))
         timings[f"seed{seed}_s"] = round(time.perf_counter() - tic, 2)
     ratios = [f"{float(r):.1f}" for r in m.ratios]
     metrics = pool(per_seed, ratios)
+    metrics["contrasts"] = contrasts(per_seed, ratios, rows)
     conditions = [c for c in rcs.QUERY_CONDITIONS
                   if any(c in s["queries"]["conditions"] for s in per_seed)]
     metrics["groups"] = {}
@@ -357,13 +442,13 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         c: sorted({d for s in per_seed
                    for d, k in zip(s["queries"]["dates"], s["queries"]["conditions"]) if k == c})
         for c in conditions}
-    labels = {k: CONDITION_LABELS.get(k, methods.row_of(k, config).label) for k in ROWS}
+    labels = {k: CONDITION_LABELS.get(k, methods.row_of(k, config).label) for k in rows}
     metrics.update({
         "seeds": seeds,
         "ratios": ratios,
         "thresholds": list(THRESHOLD_KEYS),
-        "methods": list(ROWS),
-        "oracles": [k for k in ROWS
+        "methods": list(rows),
+        "oracles": [k for k in rows
                     if methods.row_of(k, config).kind in ("oracle", "diagnostic")],
         "reference": "kcover",
         "labels": labels,
@@ -372,6 +457,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         "min_inliers": int(m.min_inliers),
         "maps": {str(s["seed"]): s["map"] for s in per_seed},
         "dataset": {"map": [s["root"] for s in per_seed]},
+        "outcome_scorers": None if scorers is None else {
+            k: v for k, v in scorers.summary.items() if k != "history"},
     })
     metrics["primary"] = primary(metrics)
     figures = []
@@ -448,6 +535,39 @@ def _primary_lines(p: Mapping) -> list[str]:
     ]
 
 
+def _contrast_lines(metrics: Mapping) -> list[str]:
+    """The time-aware outcome scorer against its twin and K-cover, per condition group at
+    ``PRIMARY_RATIOS`` (nothing where the run has no outcome rows)."""
+    a, twin = CONTRASTS[0]
+    if not all(k in metrics["methods"] for k in (a, twin)):
+        return []
+    rows = []
+    for name, group in metrics["groups"].items():
+        gap = group.get("contrasts", {}).get(f"{a} - {twin}")
+        if gap is None:
+            continue
+        for r in PRIMARY_RATIOS:
+            for th in PRIMARY_THRESHOLDS:
+                c = gap[r][th]
+                lo, hi = group["paired_interval"][a][r][th]
+                d_k = group["accuracy"][a][r][th] - group["accuracy"]["kcover"][r][th]
+                rows.append((f"{name}, {100 * float(r):.0f} %, {TH_NAME[th]}", [
+                    f"{group['accuracy'][a][r][th]:.1f}",
+                    f"{c['difference']:+.1f} [{c['interval'][0]:+.1f}, {c['interval'][1]:+.1f}]",
+                    f"{c['only_row']} / {c['only_against']}",
+                    f"{d_k:+.1f} [{lo:+.1f}, {hi:+.1f}]"]))
+    if not rows:
+        return []
+    return [
+        "### The outcome scorer at the query's time against its twin and K-cover "
+        "(exploratory)", "",
+        f"`{a}` (accuracy, %) minus its time-agnostic twin `{twin}` and minus K-cover, in "
+        "points, with the 95 % interval from a bootstrap of whole (world seed, condition) "
+        "clusters; the queries only the time-aware scorer / only its twin localizes:", "",
+        *_table("group, pruned, threshold", ["time-aware", "minus twin", "only time-aware / "
+                                             "only twin", "minus K-cover"], rows), ""]
+
+
 def tables_markdown(metrics: Mapping) -> str:
     """The results tables of a run (what ``report.md`` and the documentation show): the
     primary comparison, the full map by condition, each condition group's accuracy and
@@ -495,6 +615,7 @@ def tables_markdown(metrics: Mapping) -> str:
                   *_table("threshold", _pct(ratios), [
                       (TH_NAME[th], [_gap_cell(group, r, th) for r in ratios])
                       for th in PRIMARY_THRESHOLDS]), ""]
+    lines += _contrast_lines(metrics)
     last = ratios[-1]
     conds = list(per)
     lines += [f"### Each condition at {100 * float(last):.0f} % pruned, (5 m, 10 deg) "
@@ -507,6 +628,16 @@ def tables_markdown(metrics: Mapping) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _scorer_lines(summary: Mapping | None) -> list[str]:
+    if not summary:
+        return []
+    return [f"The outcome scorers learned from label worlds never evaluated here "
+            f"({', '.join(summary['label_groups'])}): {summary['queries']} queries "
+            f"({summary['queries_correct']} localized within (5 m, 10 deg) on their own full "
+            f"map), {summary['pairs_of_correct_queries']} point-query pairs of those, "
+            f"{summary['positives']} PnP inliers.", ""]
+
+
 def markdown(metrics: Mapping) -> str:
     """``report.md``: every sentence computed from ``metrics``."""
     prov = metrics.get("provenance", {})
@@ -516,8 +647,10 @@ def markdown(metrics: Mapping) -> str:
         f"{metrics['queries']} queries with a ground-truth pose, world seeds "
         f"{metrics['seeds']}, size {metrics['size']}; the map is the overcast daytime "
         "reference traversal. Rows: the baselines and oracles of the map-summarization "
-        "experiment; a query's *date* is its traversal (its condition).",
+        "experiment and, where the run has them, the outcome scorer at the query's time and "
+        "its time-agnostic twin; a query's *date* is its traversal (its condition).",
         "",
+        *_scorer_lines(metrics.get("outcome_scorers")),
         tables_markdown(metrics),
         f"Command: `{prov.get('command', '')}`; code {prov.get('code', '')}; "
         f"{prov.get('machine', '')}; {prov.get('date', '')}.",

@@ -48,12 +48,16 @@ from rp_jax.mapsum.localization_outcomes import OutcomeLabels, concatenate, labe
 __all__ = [
     "FEATURE_GROUPS",
     "KINDS",
+    "LabelStack",
     "OutcomeScorers",
     "ScorerSettings",
     "TRAINING_SLICES",
+    "fit_scorers",
     "map_point_table",
+    "query_table",
     "settings_of",
     "slice_outcomes",
+    "stack_groups",
     "train_outcome_scorers",
     "training_slices",
     "validation_auc",
@@ -102,7 +106,7 @@ def settings_of(config) -> ScorerSettings:
         hidden=int(m.get("outcome_hidden", d.hidden)),
         depth=int(m.get("outcome_depth", d.depth)),
         epochs=int(m.get("outcome_epochs", d.epochs)),
-        batch_size=d.batch_size,
+        batch_size=int(m.get("outcome_batch_size", d.batch_size)),
         learning_rate=d.learning_rate,
         weight_decay=d.weight_decay,
         seed=int(config.seed),
@@ -159,7 +163,8 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
       map_points: its ``MapPoints``.
       obs_descriptors: [n_obs, 128] its observations' descriptors (NaN rows: none).
       point_rep: name -> [P, T] RP vectors; only ``"robotcar"`` (the paper's RP, which never
-        saw a CMU slice) is read, so features mean the same on every slice.
+        saw a CMU slice) is read, so features mean the same on every slice; without it the
+        table has no RP columns (a layout whose scorer is trained without them).
       point_desc: [P, 128] mean descriptors.
       point_cat: [P] majority category (-1 unknown).
       keypoint: [n_obs, 3] the observations' re-detected SIFT size, response and strength
@@ -177,20 +182,23 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
     return point_features(
         map_points, camera_centres=centres, image_sizes=sizes,
         obs_descriptors=obs_descriptors, point_descriptors=point_desc,
-        repeatability={"robotcar": point_rep["robotcar"]}, point_category=point_cat,
+        repeatability={k: point_rep[k] for k in ("robotcar",) if k in point_rep},
+        point_category=point_cat,
         keypoint=keypoint, up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio),
         num_retrieved=int(config.map.num_retrieved))
 
 
-def query_table(times: Sequence[dt.datetime], image_paths: Sequence[Path]) -> np.ndarray:
-    """[Q, G] raw query features: time, the sun at the CMU place, the day's weather where
-    the world records it (a real user's station record)."""
+def query_table(times: Sequence[dt.datetime], image_paths: Sequence[Path],
+                place: tuple[float, float] | None = None) -> np.ndarray:
+    """[Q, G] raw query features: time, the sun at ``place`` (latitude, longitude; default
+    the CMU place), the day's weather where the world records it (a real user's station
+    record)."""
     from rp_jax.datasets.capture_conditions import weather_record
     from rp_jax.mapsum.conditional_scores import dataset_place
     from rp_jax.mapsum.outcome_scorer import query_features
 
     weather = [weather_record(p, t) for p, t in zip(image_paths, times, strict=True)]
-    return query_features(list(times), dataset_place("cmu_seasons"), weather)
+    return query_features(list(times), place or dataset_place("cmu_seasons"), weather)
 
 
 # ----------------------------------------------------------------------------- labels
@@ -351,11 +359,11 @@ FEATURE_GROUPS = {
 def _point_names(num_columns: int) -> list[str]:
     from rp_jax.mapsum.outcome_scorer import point_feature_names
 
-    for t in range(1, 64):
-        names = point_feature_names({"robotcar": t})
+    for t in range(0, 64):
+        names = point_feature_names({"robotcar": t} if t else {})
         if len(names) == num_columns:
             return names
-    raise ValueError(f"{num_columns} point-feature columns match no RP length")
+    raise ValueError(f"{num_columns} point-feature columns match no RP length (nor none)")
 
 
 def columns_without(names: Sequence[str], groups: Sequence[str]) -> np.ndarray:
@@ -366,7 +374,7 @@ def columns_without(names: Sequence[str], groups: Sequence[str]) -> np.ndarray:
 
 
 @dataclasses.dataclass
-class _Stack:
+class LabelStack:
     """Several groups' labels with their tables stacked (point rows offset per group)."""
 
     labels: OutcomeLabels
@@ -375,15 +383,15 @@ class _Stack:
     pair_point: np.ndarray  # [n] rows of ``points``
 
 
-def _stack(parts: Sequence[tuple[OutcomeLabels, np.ndarray, np.ndarray]]) -> _Stack:
+def stack_groups(parts: Sequence[tuple[OutcomeLabels, np.ndarray, np.ndarray]]) -> LabelStack:
     labels = concatenate([p[0] for p in parts])
     offsets = np.cumsum([0] + [len(p[1]) for p in parts[:-1]])
     pair_point = np.concatenate([p[0].point + o for p, o in zip(parts, offsets, strict=True)])
-    return _Stack(labels, np.concatenate([p[1] for p in parts]),
+    return LabelStack(labels, np.concatenate([p[1] for p in parts]),
                   np.concatenate([p[2] for p in parts]), pair_point)
 
 
-def _fit_one(kind: str, data: _Stack, settings: ScorerSettings, columns: np.ndarray,
+def _fit_one(kind: str, data: LabelStack, settings: ScorerSettings, columns: np.ndarray,
              progress: bool):
     """(params, point Standardizer, query Standardizer, per-epoch losses) of one scorer."""
     import jax
@@ -435,19 +443,26 @@ def _fit_one(kind: str, data: _Stack, settings: ScorerSettings, columns: np.ndar
 
 class OutcomeScorers:
     """The trained scorers of one run: ``point_scores(kind, table, when, image_path)``;
-    ``params[kind]`` lists the ensemble's members (``ScorerSettings.members``)."""
+    ``params[kind]`` lists the ensemble's members (``ScorerSettings.members``); ``place``
+    is where the sun of a query's time is computed (None: the CMU place)."""
 
     def __init__(self, settings: ScorerSettings, nets: dict, params: dict, standardizers: dict,
-                 columns: np.ndarray, summary: dict):
+                 columns: np.ndarray, summary: dict,
+                 place: tuple[float, float] | None = None):
         self.settings, self.nets, self.params = settings, nets, params
         self.standardizers, self.columns, self.summary = standardizers, columns, summary
+        self.place = place
 
     def point_scores(self, kind: str, point_table: np.ndarray, when: dt.datetime,
                      image_path: Path | None = None) -> np.ndarray:
         """[P] probability that each point is a correct-pose inlier of a query at ``when``
         (the day's weather read beside ``image_path`` where the world records it)."""
         pstd, qstd = self.standardizers[kind]
-        qrow = query_table([when], [image_path or Path("/nonexistent")])[0]
+        if point_table.shape[1] != len(self.columns):
+            raise ValueError(f"outcome scorer ({kind}): a table of {point_table.shape[1]} "
+                             f"point features, trained on {len(self.columns)} (a map described "
+                             "with another set of predictors than the scorer's labels)")
+        qrow = query_table([when], [image_path or Path("/nonexistent")], self.place)[0]
         return self.scores(kind, pstd(point_table[:, self.columns]), qstd(qrow[None])[0])
 
     def scores(self, kind: str, point_rows: np.ndarray, query_row: np.ndarray) -> np.ndarray:
@@ -459,14 +474,14 @@ class OutcomeScorers:
 
 
 def _training_data(config, workdir: Path, predictor, settings: ScorerSettings,
-                   progress: bool) -> tuple[_Stack, list[str]]:
+                   progress: bool) -> tuple[LabelStack, list[str]]:
     parts, groups = [], []
     for seed in settings.seeds:
         for s in training_slices(config, seed):
             parts.append(slice_outcomes(config, seed, s, predictor, workdir / LABEL_DIR,
                                         progress=progress))
             groups.append(f"seed{seed}/slice{s}")
-    return _stack(parts), groups
+    return stack_groups(parts), groups
 
 
 def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: bool = True,
@@ -480,28 +495,48 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
       progress: tqdm bars.
       drop_groups: ``FEATURE_GROUPS`` left out (the ablation); the default uses all.
     """
+    workdir = Path(workdir)
+    settings = settings_of(config)
+    data, groups = _training_data(config, workdir, predictor, settings, progress)
+    suffix = "".join(f"_without_{g}" for g in drop_groups)
+    out = workdir / f"outcome_scorer_without_slice{config.map.slice}{suffix}"
+    return fit_scorers(settings, data, groups, out, _label_fingerprint(config, predictor),
+                       drop_groups=drop_groups, progress=progress)
+
+
+def fit_scorers(settings: ScorerSettings, data: LabelStack, groups: Sequence[str], out: Path,
+                label_fingerprint: str, *, drop_groups: Sequence[str] = (),
+                place: tuple[float, float] | None = None,
+                progress: bool = True) -> OutcomeScorers:
+    """Both scorers (each ``settings.members`` networks) on ``data``'s pairs, saved in
+    ``out`` (``{kind}_{k}.msgpack``, ``fit.json``) and loaded from there where a previous
+    fit asked the same (settings, label groups and fingerprint, features, pairs).
+
+    Args:
+      settings: how to train.
+      data: the stacked labels and raw tables of the label ``groups``.
+      out: the scorers' folder.
+      label_fingerprint: what the labels were made with (a change trains again).
+      drop_groups: ``FEATURE_GROUPS`` left out.
+      place: where the sun of a query's time is computed (the labels' place).
+    """
     from flax import serialization
 
     from rp_jax.mapsum.outcome_scorer import OutcomeScorer, Standardizer
 
-    workdir = Path(workdir)
-    settings = settings_of(config)
-    data, groups = _training_data(config, workdir, predictor, settings, progress)
     names = _point_names(data.points.shape[1])
     columns = columns_without(names, drop_groups)
-    suffix = "".join(f"_without_{g}" for g in drop_groups)
-    out = workdir / f"outcome_scorer_without_slice{config.map.slice}{suffix}"
     lab = data.labels
     asked = {
         "settings": dataclasses.asdict(settings),
-        "groups": groups,
-        "label_fingerprint": _label_fingerprint(config, predictor),
+        "groups": list(groups),
+        "label_fingerprint": label_fingerprint,
         "features": [n for n, c in zip(names, columns, strict=True) if c],
         "pairs": int(lab.num_pairs),
     }
     asked = json.loads(json.dumps(asked, default=list))
     summary = {
-        "label_groups": groups,
+        "label_groups": list(groups),
         "queries": int(lab.num_queries),
         "queries_correct": int(lab.pose_correct.sum()),
         "pairs": int(lab.num_pairs),
@@ -551,7 +586,7 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
                               for k in KINDS},
         })
     return OutcomeScorers(settings, nets, params, stds, columns,
-                          {**summary, "history": history})
+                          {**summary, "history": history}, place=place)
 
 
 # ----------------------------------------------------------------------------- rows
@@ -653,7 +688,7 @@ def validation_auc(scorers: OutcomeScorers, labels: OutcomeLabels, point_table: 
             for kind in KINDS}
 
 
-def _feature_aucs(data: _Stack) -> dict[str, float | None]:
+def _feature_aucs(data: LabelStack) -> dict[str, float | None]:
     """Each point feature alone as the score (pairs of correctly localized queries)."""
     from rp_jax.mapsum.statistics import inlier_auc
 
@@ -709,7 +744,7 @@ def validate(config, workdir: Path, *, slice_id: int = 6, seeds: Sequence[int] =
         result["variants"][name] = {"auc": pooled, "auc_per_seed": per_seed,
                                     "training": {k: v for k, v in scorers.summary.items()}}
         timings[f"{name}_s"] = round(time.perf_counter() - tic, 1)
-    stack = _stack(held)
+    stack = stack_groups(held)
     result["feature_auc"] = _feature_aucs(stack)
     use = stack.labels.pose_correct[stack.labels.query]
     result["validation"] = {
