@@ -546,7 +546,7 @@ def _contrast_lines(metrics: Mapping) -> list[str]:
         gap = group.get("contrasts", {}).get(f"{a} - {twin}")
         if gap is None:
             continue
-        for r in PRIMARY_RATIOS:
+        for r in (r for r in PRIMARY_RATIOS if r in gap):
             for th in PRIMARY_THRESHOLDS:
                 c = gap[r][th]
                 lo, hi = group["paired_interval"][a][r][th]

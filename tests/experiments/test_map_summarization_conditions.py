@@ -63,12 +63,14 @@ def test_the_report_names_the_primary_comparison(tiny):
 def test_a_second_run_reuses_the_seeds(tiny, capsys):
     workdir, metrics = tiny
     seed_file = workdir / "seed0" / "seed.json"
-    before = seed_file.stat().st_mtime_ns
+    label_file = workdir / "outcome_labels" / "robotcar_seasons_seed1.npz"
+    fit_file = workdir / "outcome_scorer_robotcar_seasons" / "fit.json"
+    before = [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file)]
     assert mc.main(["--size", "tiny", "--seeds", "0", "--workdir", str(workdir), "--quiet",
                     "--data-dir", str(workdir.parent / "data" / "tensorflow_datasets"),
                     f"--config.map.ratios=({','.join(RATIOS)})",
                     "--config.map.ransac_iterations=1000"]) == 0
-    assert seed_file.stat().st_mtime_ns == before
+    assert [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file)] == before
     assert json.loads((workdir / "metrics.json").read_text())["accuracy"] == metrics["accuracy"]
 
 
@@ -160,3 +162,60 @@ def test_unknown_conditions_are_refused_before_any_work(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "config.map.conditions" in err and "midnight" in err
     assert not (tmp_path / "w" / "metrics.json").exists()
+
+
+def test_the_outcome_rows_learn_only_from_worlds_never_evaluated(tiny):
+    import numpy as np
+
+    from rp_jax.mapsum.localization_outcomes import OutcomeLabels
+
+    workdir, metrics = tiny
+    assert set(mc.OUTCOME_ROWS) <= set(metrics["methods"])
+    assert metrics["outcome_scorers"]["label_groups"] == ["robotcar_seasons/seed1"]
+    labels = OutcomeLabels.load(workdir / "outcome_labels" / "robotcar_seasons_seed1.npz")
+    assert set(np.asarray(labels.group).tolist()) == {"robotcar_seasons/seed1"}
+    # Every query of the label world's conditions (the tiny world: dusk, night, rain).
+    assert sorted({str(n).split("/")[0] for n in labels.names}) == ["dusk", "night", "rain"]
+    assert metrics["outcome_scorers"]["queries"] == labels.num_queries
+    # The contrast is the paired difference of the two rows' accuracies.
+    gap = metrics["contrasts"]["outcome_top - outcome_agnostic_top"]
+    acc = metrics["accuracy"]
+    for r in RATIOS:
+        for th, cell in gap[r].items():
+            assert cell["difference"] == pytest.approx(
+                acc["outcome_top"][r][th] - acc["outcome_agnostic_top"][r][th], abs=0.02)
+            assert cell["interval"][0] <= cell["difference"] <= cell["interval"][1]
+    assert "against its twin and K-cover" in (workdir / "report.md").read_text()
+
+
+def test_label_worlds_that_are_also_evaluated_are_refused(tmp_path, capsys):
+    code = mc.main(["--size", "tiny", "--seeds", "0,1", "--workdir", str(tmp_path / "w"),
+                    "--quiet", "--data-dir", str(tmp_path / "data" / "tensorflow_datasets")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "outcome_seeds=(1,) shares [1]" in err and "never gives a label" in err
+    assert not (tmp_path / "w").exists() and not (tmp_path / "data").exists()
+
+
+def test_a_given_layout_runs_without_the_outcome_rows():
+    config = mc.get_config("tiny")
+    assert mc.rows_of(config) == mc.ROWS
+    config.map.root = "/some/layout"
+    assert mc.rows_of(config) == mc.BASE_ROWS
+
+
+def test_contrasts_pair_the_rows_query_by_query():
+    # Two worlds, one condition each; outcomes per query as [0.25 m, 0.5 m, 5 m] flags.
+    def seed(k, a, b, posed):
+        return {"seed": k, "queries": {"posed": posed, "dates": ["2014-12-16"] * len(posed)},
+                "outcomes": {"outcome_top": {"0.9": [[x] * 3 for x in a]},
+                             "outcome_agnostic_top": {"0.9": [[x] * 3 for x in b]}}}
+
+    per_seed = [seed(0, [1, 1, 0, 0], [1, 0, 0, 1], [True] * 4),
+                seed(1, [1, 0, 1], [0, 0, 0], [True, True, False])]
+    gap = mc.contrasts(per_seed, ["0.9"], mc.ROWS)["outcome_top - outcome_agnostic_top"]
+    cell = gap["0.9"]["5m_10deg"]
+    # Posed queries: 6; time-aware localizes 3, its twin 2 (the unposed third is not read).
+    assert cell["difference"] == pytest.approx(100 * (3 - 2) / 6, abs=0.01)
+    assert (cell["only_row"], cell["only_against"]) == (2, 1)
+    assert mc.contrasts(per_seed, ["0.9"], mc.BASE_ROWS) == {}

@@ -52,3 +52,48 @@ def test_validation_refuses_a_bad_field_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="outcome_members"):
         eo.validate(config, tmp_path / "run", slice_id=6, progress=False)
     assert not (tmp_path / "run" / "outcome_labels").exists()
+
+
+def test_a_table_of_another_width_is_refused_naming_both():
+    when = dt.datetime(2010, 6, 1, 12, tzinfo=dt.UTC)
+    n_query = eo.query_table([when], [Path("/nonexistent")]).shape[1]
+    net = OutcomeScorer(hidden=8, depth=1, time_aware=True)
+    params = jax.device_get(create_train_state(net, 4, n_query, seed=0).params)
+    std = (Standardizer(np.zeros(4), np.ones(4)), Standardizer(np.zeros(n_query),
+                                                               np.ones(n_query)))
+    scorers = eo.OutcomeScorers(eo.ScorerSettings(), {"outcome": net}, {"outcome": [params]},
+                                {"outcome": std}, np.ones(4, bool), {})
+    with pytest.raises(ValueError, match="a table of 6 point features, trained on 4"):
+        scorers.point_scores("outcome", np.zeros((3, 6), np.float32), when)
+
+
+def test_the_query_table_reads_the_sun_at_the_given_place():
+    from rp_jax.mapsum.outcome_scorer import QUERY_FEATURES
+    from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
+
+    when = [dt.datetime(2014, 12, 16, 17, 0, tzinfo=dt.UTC)]  # dusk in Oxford
+    nowhere = [Path("/nonexistent")]
+    cmu, oxford = eo.query_table(when, nowhere), eo.query_table(when, nowhere, ROBOTCAR_LOCATION)
+    sun = [i for i, n in enumerate(QUERY_FEATURES) if n.startswith("sun_")]
+    assert sun and not np.allclose(cmu[:, sun], oxford[:, sun])
+    rest = [i for i in range(len(QUERY_FEATURES)) if i not in sun]
+    np.testing.assert_array_equal(cmu[:, rest], oxford[:, rest])  # the clock is the same
+    # 17:00 UTC in mid-December: the sun is down in Oxford (sets near 15:55 UTC).
+    assert oxford[0, QUERY_FEATURES.index("sun_elevation")] < 0
+
+
+def test_stacked_groups_offset_their_point_rows():
+    from rp_jax.mapsum.localization_outcomes import OutcomeLabels
+
+    def group(points, pairs, name):
+        n = len(pairs)
+        lab = OutcomeLabels(query=np.zeros(n, np.int64), point=np.asarray(pairs, np.int64),
+                            candidate=np.ones(n, bool), inlier=np.ones(n, bool),
+                            pose_correct=np.ones(1, bool), localized=np.ones(1, bool),
+                            names=np.array(["q"]), times=np.array(["t"]),
+                            group=np.array([name]))
+        return lab, np.zeros((points, 3), np.float32), np.zeros((1, 2), np.float32)
+
+    stack = eo.stack_groups([group(4, [0, 3], "a"), group(2, [1], "b")])
+    assert stack.points.shape == (6, 3) and stack.queries.shape == (2, 2)
+    assert stack.pair_point.tolist() == [0, 3, 5]
