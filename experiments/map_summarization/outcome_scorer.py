@@ -384,11 +384,12 @@ class LabelStack:
 
 
 def stack_groups(parts: Sequence[tuple[OutcomeLabels, np.ndarray, np.ndarray]]) -> LabelStack:
+    """One stack of several groups' (labels, point table, query table)."""
     labels = concatenate([p[0] for p in parts])
     offsets = np.cumsum([0] + [len(p[1]) for p in parts[:-1]])
     pair_point = np.concatenate([p[0].point + o for p, o in zip(parts, offsets, strict=True)])
     return LabelStack(labels, np.concatenate([p[1] for p in parts]),
-                  np.concatenate([p[2] for p in parts]), pair_point)
+                      np.concatenate([p[2] for p in parts]), pair_point)
 
 
 def _fit_one(kind: str, data: LabelStack, settings: ScorerSettings, columns: np.ndarray,
