@@ -51,12 +51,15 @@ def contact_sheet(
         r, c = divmod(i, columns)
         y0, x0 = pad + r * (h + caption + pad), pad + c * (w + pad)
         sheet[y0 : y0 + h, x0 : x0 + w] = frame
+        # A caption wider than its tile is drawn smaller, never over the next tile's.
+        (width, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+        fit = min(scale, scale * (w - 4) / width) if width > 0 else scale
         cv2.putText(
             sheet,
             label,
             (x0 + 2, y0 + h + int(caption * 0.75)),
             cv2.FONT_HERSHEY_SIMPLEX,
-            scale,
+            fit,
             (0, 0, 0),
             1,
             cv2.LINE_AA,

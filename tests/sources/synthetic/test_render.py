@@ -273,6 +273,14 @@ def test_contact_sheet():
         contact_sheet([imgs[0], imgs[0][:10]], ["a", "b"])
 
 
+def test_a_long_caption_stays_under_its_own_tile():
+    imgs = [np.full((48, 64, 3), 128, np.uint8)] * 2
+    sheet = contact_sheet(imgs, ["overcast-reference: left 12:07", ""], columns=2, pad=4)
+    strip = sheet[52:66]  # the caption row
+    assert (strip[:, 4:68] < 128).any()  # the first caption is drawn
+    assert (strip[:, 68:] == 255).all()  # and stops before the second tile's
+
+
 def test_motion_of_a_sideways_camera_is_f_v_t_over_depth():
     from rp_jax.sources.synthetic.camera_effects import motion_field
 
