@@ -419,9 +419,8 @@ def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMa
                           for i in ok])
     auc, selecting = {}, selecting_aucs(full, {r.name: selecting_rank[r.name] for r in rows})
     for row in rows:
-        ranks = np.concatenate([selecting_rank[row.name][i] for i in ok])
-        if row.score is None:
-            s = ranks
+        if row.score is None:  # a set method: what it selects is its score
+            s = np.concatenate([selecting_rank[row.name][i] for i in ok])
         else:
             per_query = methods.per_of(row, models) == "query"
             s = np.concatenate([
