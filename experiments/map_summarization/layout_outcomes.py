@@ -34,7 +34,6 @@ import numpy as np
 
 from experiments.map_summarization import outcome_scorer
 from experiments.map_summarization.world import Layout, localization_kwargs
-from rp_jax import files
 from rp_jax.mapsum.localization_outcomes import OutcomeLabels, labels_of_queries
 
 __all__ = ["label_seeds", "train_layout_scorers", "world_outcomes"]
@@ -120,13 +119,8 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
         world.point_descriptors, world.point_categories, obs.keypoint)
     query_table = outcome_scorer.query_table([q["time"] for q in queries],
                                              [q["image_path"] for q in queries], place)
-    arrays = {k: np.asarray(getattr(labels, k)) for k in
-              ("query", "point", "candidate", "inlier", "pose_correct", "localized")}
-    arrays.update({k: np.asarray(getattr(labels, k)).astype(str)
-                   for k in ("names", "times", "group")})
-    with files.replacing(path) as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, **arrays, point_table=point_table, query_table=query_table,
-                            fingerprint=np.asarray(fingerprint))
+    labels.save(path, point_table=point_table, query_table=query_table,
+                fingerprint=np.asarray(fingerprint))
     log.info("%s seed %d: %d queries (%d correct), %d pairs, %d positives", layout.name, seed,
              labels.num_queries, labels.pose_correct.sum(), labels.num_pairs,
              labels.inlier.sum())

@@ -325,16 +325,10 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
             [q["time"].isoformat(timespec="seconds") for q in queries],
             group=f"seed{seed}/slice{slice_id}")
         qtable = query_table([q["time"] for q in queries], [q["image_path"] for q in queries])
-    arrays = {k: np.asarray(getattr(labels, k)) for k in
-              ("query", "point", "candidate", "inlier", "pose_correct", "localized")}
-    arrays.update({k: np.asarray(getattr(labels, k)).astype(str)
-                   for k in ("names", "times", "group")})
-    with files.replacing(path) as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, **arrays, point_table=point_table, query_table=qtable,
-                            fingerprint=np.asarray(fingerprint),
-                            feature_version=np.asarray(FEATURE_VERSION),
-                            obs_descriptors=obs_desc, obs_repeatability=obs_rep,
-                            obs_category=obs_cat, obs_keypoint=obs_kp)
+    labels.save(path, point_table=point_table, query_table=qtable,
+                fingerprint=np.asarray(fingerprint), feature_version=np.asarray(FEATURE_VERSION),
+                obs_descriptors=obs_desc, obs_repeatability=obs_rep, obs_category=obs_cat,
+                obs_keypoint=obs_kp)
     log.info("seed %d slice %d: %d queries (%d correct), %d pairs, %d positives", seed,
              slice_id, labels.num_queries, labels.pose_correct.sum(), labels.num_pairs,
              labels.inlier.sum())

@@ -101,13 +101,17 @@ class OutcomeLabels:
     def num_queries(self) -> int:
         return len(self.names)
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write every array to ``path`` (``.npz``, atomically)."""
+    def save(self, path: str | os.PathLike, **extra: np.ndarray) -> Path:
+        """Write every array to ``path`` (``.npz``, atomically), with ``extra`` arrays beside
+        them (what a cache keeps with its labels; ``load`` reads only the labels)."""
         arrays = {k: np.asarray(getattr(self, k)) for k in _FIELDS}
         for k in ("names", "times", "group"):
             arrays[k] = arrays[k].astype(str)
+        clash = sorted(set(extra) & set(arrays))
+        if clash:
+            raise ValueError(f"extra arrays {clash} would replace the labels' own")
         with files.replacing(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
+            np.savez_compressed(f, **arrays, **extra)
         return Path(path)
 
     @classmethod

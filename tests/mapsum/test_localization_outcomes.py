@@ -108,3 +108,15 @@ def test_save_load_subset_and_concatenate(world, tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="bad.npz"):
         OutcomeLabels.load(tmp_path / "bad.npz")
+
+
+def test_save_keeps_extra_arrays_beside_the_labels(world, tmp_path):
+    labels = world[-1]
+    path = labels.save(tmp_path / "cache.npz", point_table=np.eye(3), fingerprint=np.asarray("ab"))
+    with np.load(path) as z:
+        np.testing.assert_array_equal(z["point_table"], np.eye(3))
+        assert str(z["fingerprint"]) == "ab"
+    np.testing.assert_array_equal(OutcomeLabels.load(path).point, labels.point)
+    with pytest.raises(ValueError, match=r"\['point'\] would replace"):
+        labels.save(tmp_path / "clash.npz", point=np.zeros(1))
+    assert not (tmp_path / "clash.npz").exists()
