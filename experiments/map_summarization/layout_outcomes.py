@@ -40,12 +40,6 @@ __all__ = ["label_seeds", "train_layout_scorers", "world_outcomes"]
 
 log = logging.getLogger(__name__)
 
-# The map and localization settings a label depends on.
-_LABEL_KEYS = ("synthetic_size", "root", "max_keypoints", "describe_on", "associate_px",
-               "vlad_words", "num_retrieved", "match_ratio", "reprojection_error",
-               "min_inliers", "ransac_iterations", "up_axis", "time_bucket_minutes")
-
-
 def label_seeds(config) -> list[int]:
     """The label worlds of a run (``config.map.outcome_seeds``).
 
@@ -72,7 +66,7 @@ def _fingerprint(config, layout: Layout) -> str:
     from rp_jax.mapsum.outcome_scorer import FEATURE_VERSION
     from rp_jax.sources.synthetic import presets
 
-    settings = {k: config.map.get(k) for k in _LABEL_KEYS}
+    settings = {k: config.map.get(k) for k in outcome_scorer.LABEL_SETTINGS}
     settings.update(layout=layout.name, world=presets.world_version(layout.name), format=1,
                     features=int(FEATURE_VERSION))
     text = json.dumps(settings, sort_keys=True, default=str)

@@ -48,6 +48,7 @@ from rp_jax.mapsum.localization_outcomes import OutcomeLabels, concatenate, labe
 __all__ = [
     "FEATURE_GROUPS",
     "KINDS",
+    "LABEL_SETTINGS",
     "LabelStack",
     "OutcomeScorers",
     "ScorerSettings",
@@ -69,6 +70,10 @@ TRAINING_SLICES = (6, 7, 9)  # Extended CMU Seasons' training slices of this pro
 TEST_SLICE = 8  # never a label
 KINDS = ("outcome", "outcome_agnostic")  # the time-aware scorer and its twin
 LABEL_DIR = "outcome_labels"
+# The map and localization settings (``config.map``) a label depends on.
+LABEL_SETTINGS = ("synthetic_size", "root", "max_keypoints", "describe_on", "associate_px",
+                  "vlad_words", "num_retrieved", "match_ratio", "reprojection_error",
+                  "min_inliers", "ransac_iterations", "up_axis")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -210,11 +215,7 @@ def _label_fingerprint(config, predictor) -> str:
 
     from rp_jax.sources.synthetic import presets
 
-    m = config.map
-    keys = ("synthetic_size", "root", "max_keypoints", "describe_on", "associate_px",
-            "vlad_words", "num_retrieved", "match_ratio", "reprojection_error", "min_inliers",
-            "ransac_iterations", "up_axis")
-    settings = {k: m.get(k) for k in keys}
+    settings = {k: config.map.get(k) for k in LABEL_SETTINGS}
     settings["data_config"] = config.input.data_config
     settings["world"] = presets.WORLD_VERSION
     # The labels' format (the point features are versioned apart, FEATURE_VERSION: a new
