@@ -56,7 +56,12 @@ import numpy as np
 from experiments import provenance, run_files
 from experiments.map_summarization import layout_outcomes, methods
 from experiments.map_summarization.config import get_config as mapsum_config
-from experiments.map_summarization.pooling import MAIN_THRESHOLD, THRESHOLD_KEYS, pool
+from experiments.map_summarization.pooling import (
+    MAIN_THRESHOLD,
+    THRESHOLD_KEYS,
+    paired_difference,
+    pool,
+)
 from experiments.map_summarization.queries import bucket, describe_query
 from experiments.map_summarization.world import (
     RESULT_VERSION,
@@ -360,35 +365,14 @@ def _fingerprint(config, scorers=None) -> str:
 def contrasts(per_seed: Sequence[Mapping], ratios, rows: Sequence[str]) -> dict:
     """Each of ``CONTRASTS`` whose rows ran: row - against, in points, per ratio and
     threshold, with the 95 % interval from a bootstrap of whole (world seed, condition)
-    clusters and the queries only one of them localizes (exploratory)."""
-    from rp_jax.mapsum.statistics import clustered_paired_interval, paired_counts
-
-    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
-    if not posed.any():
-        return {}
-    clusters = np.concatenate([[f"{s['seed']}/{d}" for d in s["queries"]["dates"]]
-                               for s in per_seed])[posed]
-
-    def stacked(row: str, ratio: str) -> np.ndarray:
-        return np.concatenate([np.asarray(s["outcomes"][row][ratio], bool).reshape(
-            -1, len(THRESHOLD_KEYS)) for s in per_seed])[posed]
-
+    clusters and the queries only one of them localizes (``pooling.paired_difference``;
+    exploratory)."""
     out = {}
     for a_row, b_row in CONTRASTS:
-        if a_row not in rows or b_row not in rows:
-            continue
-        cells: dict = {}
-        for r in ratios:
-            a, b = stacked(a_row, r), stacked(b_row, r)
-            cells[r] = {}
-            for j, th in enumerate(THRESHOLD_KEYS):
-                only_a, only_b = paired_counts(a[:, j], b[:, j])
-                lo, hi = clustered_paired_interval(a[:, j], b[:, j], clusters, seed=0)
-                cells[r][th] = {"difference": round(100.0 * float(a[:, j].mean()
-                                                                  - b[:, j].mean()), 2),
-                                "interval": [round(lo, 2), round(hi, 2)],
-                                "only_row": only_a, "only_against": only_b}
-        out[f"{a_row} - {b_row}"] = cells
+        if a_row in rows and b_row in rows:
+            cells = paired_difference(per_seed, a_row, b_row, ratios)
+            if cells:
+                out[f"{a_row} - {b_row}"] = cells
     return out
 
 

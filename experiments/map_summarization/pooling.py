@@ -26,8 +26,8 @@ from rp_jax.mapsum.statistics import (
     paired_counts,
 )
 
-__all__ = ["MAIN_THRESHOLD", "ORACLES", "REFERENCE", "THRESHOLDS", "THRESHOLD_KEYS", "pool",
-           "success"]
+__all__ = ["MAIN_THRESHOLD", "ORACLES", "REFERENCE", "THRESHOLDS", "THRESHOLD_KEYS",
+           "paired_difference", "pool", "success"]
 
 # (metres, degrees) of the benchmark's three accuracy thresholds, and their keys.
 THRESHOLDS = ((0.25, 2.0), (0.5, 5.0), (5.0, 10.0))
@@ -45,30 +45,69 @@ def success(pose, est) -> list[bool]:
     return [bool(e_pos <= d and e_rot <= r) for d, r in THRESHOLDS]
 
 
+def _posed(per_seed: Sequence[Mapping]) -> np.ndarray:
+    return np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
+
+
+def _clusters(per_seed: Sequence[Mapping], posed: np.ndarray) -> np.ndarray:
+    """The clusters of the paired bootstrap, one per (world seed, date), posed queries."""
+    return np.concatenate([
+        [f"{s.get('seed', k)}/{d}" for d in s["queries"]["dates"]]
+        for k, s in enumerate(per_seed)
+    ])[posed]
+
+
+def _stacked(per_seed: Sequence[Mapping], posed: np.ndarray, method: str,
+             ratio: str) -> np.ndarray:
+    """[posed queries, thresholds] bool: ``method``'s outcomes at ``ratio`` over the seeds."""
+    a = np.concatenate([
+        np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
+        for s in per_seed
+    ])
+    return a[posed]
+
+
+def paired_difference(per_seed: Sequence[Mapping], row: str, against: str,
+                      ratios: Sequence[str], *, resamples: int = 2000) -> dict:
+    """``row`` - ``against`` over the posed queries: per ratio and threshold the difference
+    in points, its 95 % interval from a bootstrap of whole (world seed, date) clusters and
+    the queries only one of them localizes (``only_row``, ``only_against``); {} where no
+    query is posed."""
+    posed = _posed(per_seed)
+    if not posed.any():
+        return {}
+    clusters = _clusters(per_seed, posed)
+    out: dict = {}
+    for ratio in ratios:
+        a = _stacked(per_seed, posed, row, ratio)
+        b = _stacked(per_seed, posed, against, ratio)
+        out[ratio] = {}
+        for j, th in enumerate(THRESHOLD_KEYS):
+            only_row, only_against = paired_counts(a[:, j], b[:, j])
+            lo, hi = clustered_paired_interval(a[:, j], b[:, j], clusters,
+                                               resamples=resamples, seed=0)
+            out[ratio][th] = {
+                "difference": round(100.0 * float(a[:, j].mean() - b[:, j].mean()), 2),
+                "interval": [round(lo, 2), round(hi, 2)],
+                "only_row": only_row,
+                "only_against": only_against,
+            }
+    return out
+
+
 def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int = 2000) -> dict:
     """Accuracy, intervals, paired tests and AUCs pooled over seeds (posed queries only)."""
     methods = list(per_seed[0]["outcomes"])
     if any(list(s["outcomes"]) != methods for s in per_seed):
         raise ValueError("seeds were evaluated with different methods; re-run them")
-    posed = np.concatenate([np.asarray(s["queries"]["posed"], bool) for s in per_seed])
+    posed = _posed(per_seed)
     n = int(posed.sum())
     if n == 0:
         raise ValueError("no query has a ground-truth pose: nothing to score")
-
-    # The clusters of the paired bootstrap: one per (world seed, date).
-    clusters = np.concatenate([
-        [f"{s.get('seed', k)}/{d}" for d in s["queries"]["dates"]]
-        for k, s in enumerate(per_seed)
-    ])[posed]
+    clusters = _clusters(per_seed, posed)
 
     def stacked(method: str, ratio: str) -> np.ndarray:
-        a = np.concatenate(
-            [
-                np.asarray(s["outcomes"][method][ratio], bool).reshape(-1, len(THRESHOLDS))
-                for s in per_seed
-            ]
-        )
-        return a[posed]
+        return _stacked(per_seed, posed, method, ratio)
 
     def clustered(a: np.ndarray, b: np.ndarray) -> list[float]:
         lo, hi = clustered_paired_interval(a, b, clusters, resamples=resamples, seed=0)
@@ -97,17 +136,14 @@ def pool(per_seed: Sequence[Mapping], ratios: Sequence[str], *, resamples: int =
     # Does time matter in this world? The date oracle paired with the time-agnostic one.
     oracle_gap = {}
     if set(ORACLES) <= set(methods):
-        for ratio in ratios:
-            a, b = stacked("oracle_date", ratio), stacked("oracle_agnostic", ratio)
-            oracle_gap[ratio] = {}
-            for j, th in enumerate(THRESHOLD_KEYS):
-                only_date, only_agnostic = paired_counts(a[:, j], b[:, j])
-                oracle_gap[ratio][th] = {
-                    "only_date": only_date,
-                    "only_agnostic": only_agnostic,
-                    "p": mcnemar_exact(only_date, only_agnostic),
-                    "interval": clustered(a[:, j], b[:, j]),
-                }
+        gap = paired_difference(per_seed, "oracle_date", "oracle_agnostic", ratios,
+                                resamples=resamples)
+        oracle_gap = {ratio: {th: {
+            "only_date": c["only_row"],
+            "only_agnostic": c["only_against"],
+            "p": mcnemar_exact(c["only_row"], c["only_against"]),
+            "interval": c["interval"],
+        } for th, c in cells.items()} for ratio, cells in gap.items()}
     # Each candidate recipe (a row of kind "method" in the registry, the outcome scorer's
     # included) paired with ``rp`` as well: e.g. the time-aware twin against the
     # recommended time-agnostic scorer, rp_conditional against rp.
