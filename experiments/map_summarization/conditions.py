@@ -35,10 +35,9 @@ day and year and the sun at Oxford (the weather columns unknown). With ``config.
 **Primary comparison**: ``oracle_date`` against ``oracle_agnostic`` on the night conditions
 (night, night-rain) at 80 % and 90 % pruned, at (0.5 m, 5 deg) and (5 m, 10 deg), judged by
 the 95 % interval of the paired difference from a bootstrap of whole (world seed, condition)
-clusters: does knowing the condition keep what localizes a night
-query, independently of any learned method? Everything else is exploratory, among it the
-issue's second question: the time-aware scorer against its twin and against K-cover, per
-condition group (``contrasts``).
+clusters: does knowing the condition keep what localizes a night query, independently of
+any learned method? Everything else is exploratory, among it the time-aware scorer against
+its twin and against K-cover, per condition group (``contrasts``).
 """
 
 from __future__ import annotations
