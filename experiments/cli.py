@@ -286,9 +286,10 @@ def parse_flags(argv: list[str] | None, name: str,
     return config, workdir, args
 
 
-def main(argv, name: str, get_config, doc: str) -> int:
+def main(argv, name: str, get_config, doc: str, *, default_size: str = "full") -> int:
     """Parse flags, run ``experiments.sec4a.experiment.run`` and print the headline figures."""
-    config, workdir, args = parse_flags(argv, name, get_config, doc, cross_validation=True)
+    config, workdir, args = parse_flags(argv, name, get_config, doc, cross_validation=True,
+                                        default_size=default_size)
     from rp_jax import platform, progress
 
     if args.quiet:

@@ -301,7 +301,7 @@ def load_spec(name: str) -> dict:
 
 
 PRESETS = ("hours_of_day", "days_of_year", "hours_of_year", "webcam_clipart", "cmu_seasons",
-           "robotcar")
+           "robotcar", "robotcar_day")
 
 
 def preset(name: str) -> TimeSchedule:

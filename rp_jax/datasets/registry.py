@@ -94,7 +94,8 @@ class Dataset:
 
         Webcam Clip Art: listed scenes (7 train / 1 test; for a real layout with no list, the
         last scene in sorted order is the test scene). CMU Seasons: slices 6, 7, 9 train and
-        8 test. RobotCar: all train. Empty splits are dropped.
+        8 test. RobotCar: all train; its whole day: one viewpoint in four test. Empty splits
+        are dropped.
 
         Args:
           source: ``"synthetic"`` or ``"real"``.
@@ -212,6 +213,15 @@ def _no_layout_viewpoints(root: Path) -> None:
     return None
 
 
+def _robotcar_day_splits(source: str, viewpoints: Sequence[str]) -> dict[str, list[str]]:
+    """Every ``test_every``-th viewpoint in sorted order from ``test_offset`` is ``test``
+    (``data_specs/robotcar_day.json``), the others ``train``."""
+    spec = load_spec("robotcar_day")["splits"]
+    ordered = sorted(viewpoints)
+    test = ordered[int(spec["test_offset"])::int(spec["test_every"])]
+    return {"train": [v for v in ordered if v not in test], "test": test}
+
+
 DATASETS: dict[str, Dataset] = {
     "webcam_clipart": Dataset(
         "webcam_clipart", webcam_clipart, "static", webcam_clipart.read, None,
@@ -223,6 +233,10 @@ DATASETS: dict[str, Dataset] = {
     ),
     "robotcar": Dataset(
         "robotcar", robotcar, "pose", robotcar.read, None, _robotcar_splits,
+        _no_layout_viewpoints,
+    ),
+    "robotcar_day": Dataset(
+        "robotcar_day", robotcar, "pose", robotcar.read_day, None, _robotcar_day_splits,
         _no_layout_viewpoints,
     ),
 }

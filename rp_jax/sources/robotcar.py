@@ -107,6 +107,7 @@ __all__ = [
     "load_category",
     "load_image",
     "read",
+    "read_day",
     "read_camera_extrinsics",
     "read_camera_model",
     "read_extrinsics",
@@ -119,6 +120,7 @@ log = logging.getLogger(__name__)
 
 DATASET = "Oxford RobotCar"
 SPEC_NAME = "robotcar"
+DAY_SPEC_NAME = "robotcar_day"
 BAYER_PATTERN = "gbrg"  # the stereo cameras (the SDK's image.py BAYER_STEREO)
 BAYER_PATTERN_MONO = "rggb"  # mono_left, mono_right, mono_rear (BAYER_MONO)
 TRAVERSAL = re.compile(r"^\d{4}-\d{2}-\d{2}-\d{2}-\d{2}-\d{2}$")
@@ -368,20 +370,21 @@ def _pose_file(root: Path, traversal: Path, pose_source: str) -> Path | None:
     return next((p for p in order if p.is_file()), None)
 
 
-def _viewpoint_list(root: Path, option) -> list[group_viewpoints.ListedViewpoint] | None:
+def _viewpoint_list(root: Path, option, spec_name: str = SPEC_NAME
+                    ) -> list[group_viewpoints.ListedViewpoint] | None:
     if option is not None and not isinstance(option, (str, Path)):
         return list(option)
     if option is not None:
         return group_viewpoints.read_viewpoint_list(Path(option))
     if (root / "viewpoints.csv").is_file():
         return group_viewpoints.read_viewpoint_list(root / "viewpoints.csv")
-    spec_csv = load_spec(SPEC_NAME).get("viewpoints_csv")
+    spec_csv = load_spec(spec_name).get("viewpoints_csv")
     if spec_csv:
         path = Path(spec_csv)
         path = path if path.is_absolute() else DATA_SPECS_DIR / path
         if path.is_file():
             return group_viewpoints.read_viewpoint_list(path)
-        log.warning("data_specs/robotcar.json names %s, which does not exist", path)
+        log.warning("data_specs/%s.json names %s, which does not exist", spec_name, path)
     return None
 
 
@@ -414,12 +417,13 @@ def read(
     max_yaw_deg: float | None = None,
     traversal_slots: Mapping[str, int] | None = None,
     cycle_rule: CycleRule = "session_rank",
+    spec_name: str = SPEC_NAME,
 ) -> list[Capture]:
     """Read an Oxford RobotCar layout into posed captures at the listed viewpoints.
 
     Args:
       root: folder of traversal folders (or one traversal folder).
-      schedule: defaults to ``preset("robotcar")`` (9 hourly slots 9:00-17:00).
+      schedule: defaults to ``preset(spec_name)`` (``robotcar``: 9 hourly slots 9:00-17:00).
       viewpoint_list: a ``viewpoint,latitude,longitude,yaw_deg`` CSV or a list of
         ``ListedViewpoint``; default ``<root>/viewpoints.csv``, then the CSV named by
         ``viewpoints_csv`` in ``data_specs/robotcar.json``. With none, images are grouped
@@ -436,6 +440,9 @@ def read(
       radius_m, max_yaw_deg: viewpoint membership; default the spec's 5 m and 45 deg.
       traversal_slots: folder -> slot overrides added to the spec's Table I.
       cycle_rule: see ``layout``; one session per traversal.
+      spec_name: the ``data_specs/`` file with the schedule (when ``schedule`` is None), the
+        slot table, the viewpoint radius and yaw and the time zone: ``"robotcar"`` (the
+        paper's Table I) or ``"robotcar_day"`` (``read_day``).
 
     Returns:
       Captures sorted by (viewpoint, time).
@@ -443,8 +450,8 @@ def read(
     root = Path(root)
     if not root.is_dir():
         raise LayoutError(f"{root} is not a folder; expected a {DATASET} root")
-    schedule = schedule or preset(SPEC_NAME)
-    spec = load_spec(SPEC_NAME)
+    schedule = schedule or preset(spec_name)
+    spec = load_spec(spec_name)
     radius_m = spec.get("viewpoint_radius_m", 5.0) if radius_m is None else radius_m
     max_yaw_deg = spec.get("viewpoint_yaw_deg", 45.0) if max_yaw_deg is None else max_yaw_deg
     slots = {k: int(v) for k, v in spec.get("traversal_slots", {}).items() if k != "note"}
@@ -492,7 +499,7 @@ def read(
             extrinsics_dir / "ins.txt",
         )
         T_vehicle_ins = np.eye(4)
-    listed = _viewpoint_list(base, viewpoint_list)
+    listed = _viewpoint_list(base, viewpoint_list, spec_name)
     if listed is None:
         log.warning(
             "%s: no viewpoint list (viewpoints.csv); grouping images by pose "
@@ -579,6 +586,13 @@ def read(
     counts.kept = len(assigned)
     counts.log_summary()
     return assigned
+
+
+def read_day(root: Path, **kwargs) -> list[Capture]:
+    """``read`` with ``data_specs/robotcar_day.json``: RobotCar traversals at any hour, each
+    image in the slot of its local hour (T = 24, 0:00-23:00, within 30 minutes: every
+    image has one), for the whole-day RP (``rp_jax.datasets.robotcar_day``)."""
+    return read(root, spec_name=DAY_SPEC_NAME, **kwargs)
 
 
 def _assign_viewpoints(posed, listed, radius_m, max_yaw_deg, counts) -> list[Capture]:

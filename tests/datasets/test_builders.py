@@ -149,6 +149,24 @@ def test_robotcar_tiny(tmp_path_factory):
     check_records(records, 9, preset("robotcar"))
 
 
+def test_robotcar_day_tiny_labels_the_hours_its_traversals_were_driven(tmp_path_factory):
+    b = build_tiny("robotcar_day", shared_data_dir(tmp_path_factory))
+    schedule = preset("robotcar_day")
+    assert schedule.num_timestamps == 24 and b.info.metadata["num_timestamps"] == 24
+    viewpoints = {}
+    for split in ("train", "test"):
+        records = all_records(b, split)
+        check_records(records, 24, schedule)
+        # The tiny world drives at 1:00 and 13:00 local time: those slots, and only those,
+        # are labelled (the other 22 hours are unobserved, not zero).
+        assert {int(r["slot"]) for r in records} == {1, 13}
+        observed = np.array([r["label_mask"] for r in records]).any(0)
+        assert np.flatnonzero(observed).tolist() == [1, 13]
+        viewpoints[split] = {r["viewpoint"].decode() if isinstance(r["viewpoint"], bytes)
+                             else r["viewpoint"] for r in records}
+    assert viewpoints == {"train": {"vp00"}, "test": {"vp01"}}
+
+
 def test_real_config_reads_a_manual_dir(webcam, tmp_path):
     # A real-layout folder (the synthetic world writes exactly that layout).
     manual = tmp_path / "manual"
@@ -224,6 +242,9 @@ def test_splits_of_each_dataset():
     )
     assert cmu == {"train": ["slice6/vp0000", "slice9/vp0000"], "test": ["slice8/vp0001"]}
     assert registry.get("robotcar").splits("real", ["b", "a"]) == {"train": ["a", "b"]}
+    day = registry.get("robotcar_day").splits("synthetic", [f"vp{i:02d}" for i in range(8, -1, -1)])
+    assert day == {"train": ["vp00", "vp02", "vp03", "vp04", "vp06", "vp07", "vp08"],
+                   "test": ["vp01", "vp05"]}
     with pytest.raises(ValueError, match="scene_99"):
         registry.get("webcam_clipart").splits("synthetic", ["scene_00", "scene_99"])
     real = registry.get("webcam_clipart").splits("real", ["c", "a", "b"])

@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 __all__ = ["expose", "motion_blur", "motion_field", "Sensor", "WEBCAM", "GRASSHOPPER2_11HZ",
+           "BUMBLEBEE_XB3_16HZ",
            "sensor_named", "TARGET_MEAN", "MAX_GAIN", "MIN_GAIN"]
 
 TARGET_MEAN = 0.2  # linear mean luminance auto-exposure aims at
@@ -86,7 +87,26 @@ def _grasshopper2_11hz() -> Sensor:
 
 
 GRASSHOPPER2_11HZ = _grasshopper2_11hz()
-_SENSORS = {s.name: s for s in (WEBCAM, GRASSHOPPER2_11HZ)}
+
+
+def _bumblebee_xb3_16hz() -> Sensor:
+    """The RobotCar's stereo camera (Maddern et al., IJRR 2017): Point Grey Bumblebee XB3
+    BBX3-13S2C-38, 1/3" Sony ICX445 CCD, global shutter, 3.8 mm lens, 16 Hz.
+
+    - Longest exposure: one frame period, 1 / 16 s.
+    - The noon exposure, the base sensitivity and the 0-24 dB of amplification are the
+      side cameras' (``_grasshopper2_11hz``): assumed, the dataset's documentation gives no
+      f-number or gain range for this camera.
+    """
+    side = GRASSHOPPER2_11HZ
+    frame_s = 1.0 / 16.0
+    exposure_gain = side.exposure_gain * frame_s / side.max_exposure_s
+    return Sensor("bumblebee_xb3_16hz", MIN_GAIN,
+                  side.max_gain * exposure_gain / side.exposure_gain, exposure_gain, frame_s)
+
+
+BUMBLEBEE_XB3_16HZ = _bumblebee_xb3_16hz()
+_SENSORS = {s.name: s for s in (WEBCAM, GRASSHOPPER2_11HZ, BUMBLEBEE_XB3_16HZ)}
 
 
 def sensor_named(name: str | None) -> Sensor:

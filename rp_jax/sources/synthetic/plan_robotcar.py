@@ -1,4 +1,5 @@
-"""The ``robotcar`` preset: the 9 Oxford RobotCar traversals of Table I (Sec. IV-B-1).
+"""The ``robotcar`` preset: the 9 Oxford RobotCar traversals of Table I (Sec. IV-B-1), and
+``robotcar_day``: the same layout with one traversal per hour of the day (``plan_day``).
 
 The 9 traversals of the paper's Table I, at their real instants (the folder names of
 ``data_specs/robotcar.json``, UTC, so the reader's hand-made slot table applies), along a
@@ -49,7 +50,9 @@ from rp_jax.sources.synthetic.route import CameraMount, LocalTangentFrame, Route
 __all__ = [
     "ROBOTCAR_CAMERA_HEIGHT_M",
     "ROBOTCAR_LOCATION",
+    "day_traversals",
     "plan",
+    "plan_day",
     "robotcar_traversals",
 ]
 
@@ -89,22 +92,75 @@ _ROBOTCAR_SIZES = {
     "small": _RobotcarSize(traversals=9, viewpoints=8, frames_per_viewpoint=2, scale=0.25),
     "full": _RobotcarSize(traversals=9, viewpoints=23, frames_per_viewpoint=3, scale=1.0),
 }
+# The whole-day preset: 24 traversals (one per hour; tiny: a night hour and an afternoon
+# hour), fewer viewpoints and half-size images at full size, where 24 traversals of the
+# paper's 23 viewpoints at 1280x960 would take an hour to label on two cores.
+_DAY_SIZES = {
+    "tiny": (_RobotcarSize(traversals=2, viewpoints=2, frames_per_viewpoint=2, scale=0.125),
+             (1, 13)),
+    "small": (_RobotcarSize(traversals=24, viewpoints=8, frames_per_viewpoint=2, scale=0.25),
+              tuple(range(24))),
+    "full": (_RobotcarSize(traversals=24, viewpoints=12, frames_per_viewpoint=2, scale=0.5),
+             tuple(range(24))),
+}
+# Random streams of the two presets (``seeded_rng``): scene, traversal, frame.
+_STREAMS = {"robotcar": (20, 21, 22), "robotcar_day": (40, 41, 42)}
+
+
+def day_traversals(hours=tuple(range(24))) -> list[tuple[str, int]]:
+    """The whole-day preset's traversals ``(folder name, slot)``: one per local hour ``h``,
+    starting a minute before ``h``:00 Europe/London (every frame within the schedule's 30
+    minutes of its slot), on the 15th of month ``1 + 5 h mod 12`` of 2015, so that each
+    month comes twice and neighbouring hours fall in different seasons, as the paper's
+    Table I mixes months. Folder names are the UTC start, as RobotCar names them."""
+    from zoneinfo import ZoneInfo
+
+    tz = ZoneInfo(load_spec("robotcar_day")["timezone"])
+    out = []
+    for h in hours:
+        local = dt.datetime(2015, 1 + (5 * h) % 12, 15, h, 0, tzinfo=tz) - dt.timedelta(
+            minutes=1)
+        out.append((local.astimezone(dt.UTC).strftime("%Y-%m-%d-%H-%M-%S"), int(h)))
+    return out
 
 
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
-    """The frames of the ``robotcar`` preset and its metadata writer."""
+    """The frames of the ``robotcar`` preset (the paper's Table I) and its metadata writer."""
     spec = _ROBOTCAR_SIZES[size]
-    cam = write_layout.ROBOTCAR_STEREO_CENTRE
-    cam = write_layout.scale_camera(cam, round(cam.width * spec.scale),
-                                    round(cam.height * spec.scale))
     traversals = robotcar_traversals()
     if spec.traversals < len(traversals):
         # Morning and afternoon, so the slots far apart are both there.
         step = (len(traversals) - 1) / max(spec.traversals - 1, 1)
         traversals = [traversals[round(i * step)] for i in range(spec.traversals)]
+    return _plan(out_dir, spec, traversals, seed, "robotcar")
+
+
+def plan_day(out_dir: Path, size: str, seed: int) -> Plan:
+    """The frames of the ``robotcar_day`` preset and its metadata writer: the ``robotcar``
+    layout with one traversal per hour of the day (``day_traversals``), another street than
+    ``robotcar``'s of the same seed, and nights in physical units (``photometry.EN_13201``)
+    taken with the stereo camera's exposure limit and motion blur
+    (``camera_effects.BUMBLEBEE_XB3_16HZ``), as ``robotcar_seasons`` takes its nights."""
+    from rp_jax.sources.synthetic import camera_effects, photometry
+
+    spec, hours = _DAY_SIZES[size]
+    return _plan(out_dir, spec, day_traversals(hours), seed, "robotcar_day",
+                 lighting=photometry.EN_13201.name, sensor=camera_effects.BUMBLEBEE_XB3_16HZ.name)
+
+
+def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]], seed: int,
+          name: str, *, lighting: str | None = None, sensor: str | None = None) -> Plan:
+    """The frames of ``traversals`` along one street and the layout's metadata writer;
+    ``lighting`` and ``sensor`` as ``FrameJob``'s (a sensor also blurs with the car's
+    velocity)."""
+    scene_stream, traversal_stream, frame_stream = _STREAMS[name]
+    cam = write_layout.ROBOTCAR_STEREO_CENTRE
+    cam = write_layout.scale_camera(cam, round(cam.width * spec.scale),
+                                    round(cam.height * spec.scale))
     lat, lon = ROBOTCAR_LOCATION
     leg = 12.0 * spec.viewpoints + 10.0  # metres per direction
-    scene_spec = oxford_street(int(seeded_rng(seed, 20).integers(0, 2**31 - 1)), leg + 20.0)
+    scene_spec = oxford_street(int(seeded_rng(seed, scene_stream).integers(0, 2**31 - 1)),
+                               leg + 20.0)
     scene = frame_jobs.scene_of(scene_spec)
     # The renderer's street has right-hand traffic (its passing cars use those lanes), so
     # the car keeps right here, unlike in Oxford.
@@ -127,7 +183,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
     records: dict[str, dict] = {}
     for tr_idx, (folder, _slot) in enumerate(traversals):
         start = dt.datetime.strptime(folder, "%Y-%m-%d-%H-%M-%S").replace(tzinfo=dt.UTC)
-        rng = seeded_rng(seed, 21, tr_idx)
+        rng = seeded_rng(seed, traversal_stream, tr_idx)
         speed = float(rng.uniform(7.0, 10.0))
         wander = float(rng.normal(0.0, 0.3))
         offsets = (
@@ -155,10 +211,15 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                         height=cam.height,
                         distortion=np.zeros(4),
                         when=when,
-                        frame_seed=frame_seed(seed, 22, tr_idx, v, f_idx),
+                        frame_seed=frame_seed(seed, frame_stream, tr_idx, v, f_idx),
                         image_path=path,
                         bayer="gbrg",
                         segmentation_path=segmentation_path_of(out_dir, path),
+                        lighting=lighting,
+                        sensor=sensor,
+                        velocity=(None if sensor is None else
+                                  (speed * math.cos(pose.heading),
+                                   speed * math.sin(pose.heading), 0.0)),
                     )
                 )
         # INS at 10 Hz over the whole drive.
@@ -195,4 +256,4 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                 out_dir / folder / "gps" / "ins.csv", write_layout.format_ins_csv(rec["ins"])
             )
 
-    return Plan("robotcar", out_dir, jobs, finalize)
+    return Plan(name, out_dir, jobs, finalize)

@@ -14,7 +14,9 @@ the paper, ``webcam_years`` (``plan_webcam.plan_years``: the webcams on the same
 six years, the world's slow changes on, ``slow_changes``) and ``webcam_years_frozen`` (the
 same frames without them), for the long-term decay of issue 17, and ``robotcar_seasons``
 (``plan_robotcar_seasons``: RobotCar Seasons' overcast reference traversal and its nine
-query conditions, three cameras, in the release's layout), and ``webcam_worlds`` /
+query conditions, three cameras, in the release's layout), ``robotcar_day``
+(``plan_robotcar.plan_day``: the ``robotcar`` layout with one traversal per hour of the day,
+for an RP over the whole day), and ``webcam_worlds`` /
 ``webcam_worlds_unseen`` (``plan_worlds``: the Webcam layout with every webcam in a city and
 street of its own, for an RP trained on many worlds and judged on held-out ones). They
 share the frame jobs and their rendering (``frame_jobs``). This module names the presets
@@ -103,6 +105,7 @@ PRESET_NAMES = (
     "webcam_years",
     "webcam_years_frozen",
     "robotcar_seasons",
+    "robotcar_day",
     "webcam_worlds",
     "webcam_worlds_unseen",
 )
@@ -123,7 +126,8 @@ WORLD_VERSION = 4
 # 5: robotcar_seasons' nights in physical units (``photometry.EN_13201``) taken by the
 #    RobotCar's Grasshopper2 at 11.1 Hz with its exposure limit and motion blur
 #    (``camera_effects.GRASSHOPPER2_11HZ``).
-_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 5}
+# robotcar_day renders its nights as robotcar_seasons' version 5 does, from its first version.
+_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 5, "robotcar_day": 5}
 
 
 def world_version(preset: str | None) -> int:
@@ -168,6 +172,8 @@ _PLANNERS = {
     "webcam_years_frozen": functools.partial(plan_webcam.plan_years, slow_changes=False),
     # Beyond the paper: RobotCar Seasons' reference and nine conditions (dawn to snow).
     "robotcar_seasons": plan_robotcar_seasons.plan,
+    # Beyond the paper: the RobotCar layout at every hour of the day, for a 24-hour RP.
+    "robotcar_day": plan_robotcar.plan_day,
     # Beyond the paper: many worlds for a "universal" RP, and held-out worlds to judge it.
     "webcam_worlds": plan_worlds.plan,
     "webcam_worlds_unseen": plan_worlds.plan_unseen,
