@@ -21,16 +21,19 @@ re-detection in the other queries of the query's own traversal (the query left o
 same condition, minutes apart) and ``oracle_agnostic`` by as many queries drawn from the
 other traversals. The two oracles differ only in whether they know the query's condition.
 
-The rows: K-cover, random, most observed, maplab, the oracles, and the outcome scorer
-(``rp_jax.mapsum.outcome_scorer``: a point's probability of being a PnP inlier of a correct
-pose) at the query's time (``outcome_top``) and its time-agnostic twin
+The rows: K-cover, random, most observed, maplab, the oracles, the paper's rule (Sec. V-A:
+the points with the highest repeatability at the query's time, per 10 m cell) with the
+RobotCar RP trained over the whole day (``rp_paper``: T = 24 hourly timestamps on the
+``robotcar_day`` world, another street than any evaluated one, ``train.day_config``; the
+paper's covers 9:00-17:00 only, T = 9, and cannot score a dawn or night query), and the
+outcome scorer (``rp_jax.mapsum.outcome_scorer``: a point's probability of being a PnP
+inlier of a correct pose) at the query's time (``outcome_top``) and its time-agnostic twin
 (``outcome_agnostic_top``), each keeping its best points per 10 m cell. The scorers learn
 from other worlds of the same layout (``config.map.outcome_seeds``, never an evaluated seed;
 ``layout_outcomes.py``): each label world's nine traversals localized on its own reference
-map. Their point features are those of the CMU-like scorer without the RP columns (the
-paper's RobotCar RP covers 9:00-17:00 only, T = 9); their query features are the time of
-day and year and the sun at Oxford (the weather columns unknown). With ``config.map.root``
-(one given world) the outcome rows are left out.
+map. Their point features are those of the CMU-like scorer without the RP columns; their
+query features are the time of day and year and the sun at Oxford (the weather columns
+unknown). With ``config.map.root`` (one given world) the outcome rows are left out.
 
 **Primary comparison**: ``oracle_date`` against ``oracle_agnostic`` on the night conditions
 (night, night-rain) at 80 % and 90 % pruned, at (0.5 m, 5 deg) and (5 m, 10 deg), judged by
@@ -62,6 +65,7 @@ from experiments.map_summarization.pooling import (
     pool,
 )
 from experiments.map_summarization.queries import bucket, describe_query
+from experiments.map_summarization.train import train_day_predictor
 from experiments.map_summarization.world import (
     RESULT_VERSION,
     Layout,
@@ -77,13 +81,17 @@ from rp_jax.sources.synthetic import presets
 from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
 
 __all__ = ["BASE_ROWS", "CONDITION_GROUPS", "CONTRASTS", "OUTCOME_ROWS", "PRIMARY_GROUP",
-           "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS", "contrasts", "get_config", "markdown",
+           "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS", "RP_ROWS", "contrasts", "get_config",
+           "markdown",
            "query_evidence", "restricted", "rows_of", "run", "tables_markdown", "validate"]
 
-# The rows that need no trained model (``methods.py``), then the outcome scorer's.
+# The rows that need no trained model (``methods.py``), the paper's rule with the RobotCar
+# RP over the whole day (trained on another street: any layout), then the outcome scorer's
+# (trained on other worlds of this layout: the synthetic one only).
 BASE_ROWS = (*methods.BASELINES, *methods.ORACLE_ROWS)
+RP_ROWS = ("rp_paper",)
 OUTCOME_ROWS = ("outcome_top", "outcome_agnostic_top")
-ROWS = (*BASE_ROWS, *OUTCOME_ROWS)
+ROWS = (*BASE_ROWS, *RP_ROWS, *OUTCOME_ROWS)
 # Exploratory paired comparisons beside K-cover's: (row, against).
 CONTRASTS = (("outcome_top", "outcome_agnostic_top"),)
 # The conditions by their light: both nights are lit by street lamps and windows only
@@ -97,6 +105,7 @@ CONDITION_GROUPS = {
 # The oracles' labels in this layout's words: a query's "date" is its traversal, one per
 # condition.
 CONDITION_LABELS = {
+    "rp_paper": "RP over the whole day, paper's rule",
     "oracle_agnostic": "oracle: other conditions' re-detection (as many images)",
     "oracle_date": "oracle: own condition's re-detection, query left out",
     "oracle_inliers": "oracle: all other conditions' PnP inliers",
@@ -155,7 +164,7 @@ def validate(config: ml_collections.ConfigDict) -> None:
 def rows_of(config) -> tuple[str, ...]:
     """The rows of a run: every one, less the outcome rows on a given layout (one world:
     no other world to learn from)."""
-    return BASE_ROWS if config.map.root else ROWS
+    return (*BASE_ROWS, *RP_ROWS) if config.map.root else ROWS
 
 
 # ----------------------------------------------------------------------------- the layout
@@ -343,10 +352,10 @@ def primary(metrics: Mapping) -> dict:
 # ----------------------------------------------------------------------------- run
 
 
-def _fingerprint(config, scorers=None) -> str:
+def _fingerprint(config, scorers=None, rp=None) -> str:
     """What makes one seed's outcomes: the map settings (less the seed list), the layout,
     the world version that renders it, the rows and the version of their rules, and the
-    trained scorers' weights."""
+    trained scorers' and RP's weights."""
     import jax
 
     settings = config.map.to_dict()
@@ -355,9 +364,10 @@ def _fingerprint(config, scorers=None) -> str:
                     result_version=RESULT_VERSION,
                     world=presets.world_version("robotcar_seasons"))
     h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
-    if scorers is not None:
-        for leaf in jax.tree_util.tree_leaves(scorers.params):
-            h.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
+    for model in (scorers, rp):
+        if model is not None:
+            for leaf in jax.tree_util.tree_leaves(model.params):
+                h.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
     return h.hexdigest()[:16]
 
 
@@ -390,14 +400,18 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     seeds = [0] if m.root else [int(s) for s in m.seeds]
     timings: dict[str, float] = {}
     predictors: dict = {}
-    scorers = None
-    if any(k in rows for k in OUTCOME_ROWS):
+    scorers = rp = None
+    if any(k in rows for k in RP_ROWS):
+        tic = time.perf_counter()
+        rp, rp_counts = train_day_predictor(config, workdir / "rp_day", progress=progress)
+        predictors["robotcar"] = rp
+        timings["rp_day_s"] = round(time.perf_counter() - tic, 2)
         tic = time.perf_counter()
         scorers = layout_outcomes.train_layout_scorers(
             config, ROBOTCAR_SEASONS, workdir, place=ROBOTCAR_LOCATION, progress=progress)
-        predictors = {"outcome": scorers, "outcome_agnostic": scorers}
+        predictors.update(outcome=scorers, outcome_agnostic=scorers)
         timings["outcome_scorers_s"] = round(time.perf_counter() - tic, 2)
-    fingerprint = _fingerprint(config, scorers)
+    fingerprint = _fingerprint(config, scorers, rp)
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()
@@ -440,6 +454,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         "min_inliers": int(m.min_inliers),
         "maps": {str(s["seed"]): s["map"] for s in per_seed},
         "dataset": {"map": [s["root"] for s in per_seed]},
+        "rp_day": None if rp is None else {**rp_counts, "schedule": rp.schedule.name,
+                                            "timestamps": rp.schedule.num_timestamps},
         "outcome_scorers": None if scorers is None else {
             k: v for k, v in scorers.summary.items() if k != "history"},
     })

@@ -449,6 +449,12 @@ class OutcomeScorers:
         self.standardizers, self.columns, self.summary = standardizers, columns, summary
         self.place = place
 
+    @property
+    def reads_rp(self) -> bool:
+        """Whether the scorers were trained with the RobotCar RP's columns (the CMU-like
+        layout's are; a layout whose labels come from maps no RP scored has none)."""
+        return any(n.startswith("rp_") for n in _point_names(len(self.columns)))
+
     def point_scores(self, kind: str, point_table: np.ndarray, when: dt.datetime,
                      image_path: Path | None = None) -> np.ndarray:
         """[P] probability that each point is a correct-pose inlier of a query at ``when``
@@ -618,9 +624,11 @@ def _world_scores(kind: str):
         from rp_jax.mapsum.observations import point_categories
 
         obs = ctx.extra["observations"]
+        # The RP's columns only where the scorers learned with them: a run that scores the
+        # map with an RP for its own rows does not widen the scorers' table.
         table = ctx.cached("outcome_point_table", lambda: map_point_table(
             ctx.config, ctx.extra["reconstruction"], ctx.map_points, obs.descriptors,
-            ctx.extra["point_rep"], ctx.point_descriptors,
+            ctx.extra["point_rep"] if scorers.reads_rp else {}, ctx.point_descriptors,
             point_categories(ctx.map_points, obs.category), obs.keypoint))
         first: dict = {}
         for q in ctx.queries:

@@ -201,7 +201,21 @@ def test_a_given_layout_runs_without_the_outcome_rows():
     config = mc.get_config("tiny")
     assert mc.rows_of(config) == mc.ROWS
     config.map.root = "/some/layout"
-    assert mc.rows_of(config) == mc.BASE_ROWS
+    # The RP learns on another street (robotcar_day): it scores a given layout too.
+    assert mc.rows_of(config) == (*mc.BASE_ROWS, *mc.RP_ROWS)
+
+
+def test_the_papers_rule_scores_with_an_rp_over_the_whole_day(tiny):
+    workdir, metrics = tiny
+    rp = metrics["rp_day"]
+    assert rp["schedule"] == "robotcar_day" and rp["timestamps"] == 24
+    # Trained on the whole-day world's training viewpoints only (vp01 is its test split).
+    assert rp["train_viewpoints"] + rp["validation_viewpoints"] == 1
+    seed = json.loads((workdir / "seed0" / "seed.json").read_text())
+    n = len(seed["queries"]["names"])
+    assert all(len(seed["outcomes"]["rp_paper"][r]) == n for r in RATIOS)
+    assert metrics["labels"]["rp_paper"] == mc.CONDITION_LABELS["rp_paper"]
+    assert "RP over the whole day" in (workdir / "report.md").read_text()
 
 
 def test_contrasts_pair_the_rows_query_by_query():

@@ -97,3 +97,15 @@ def test_stacked_groups_offset_their_point_rows():
     stack = eo.stack_groups([group(4, [0, 3], "a"), group(2, [1], "b")])
     assert stack.points.shape == (6, 3) and stack.queries.shape == (2, 2)
     assert stack.pair_point.tolist() == [0, 3, 5]
+
+
+def test_scorers_trained_without_rp_columns_never_read_them():
+    from experiments.map_summarization.outcome_scorer import OutcomeScorers
+    from rp_jax.mapsum.outcome_scorer import point_feature_names
+
+    def scorers(rp: dict) -> OutcomeScorers:
+        columns = np.ones(len(point_feature_names(rp)), bool)
+        return OutcomeScorers(None, {}, {}, {}, columns, {})
+
+    assert not scorers({}).reads_rp
+    assert scorers({"robotcar": 9}).reads_rp and scorers({"robotcar": 24}).reads_rp
