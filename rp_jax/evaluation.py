@@ -23,6 +23,7 @@ __all__ = [
     "masked_errors",
     "curve_corr",
     "average_curve",
+    "curves_by_source_slot",
     "per_slot_mean",
     "slot_conditioned_mean",
     "descriptor_knn",
@@ -51,6 +52,25 @@ def average_curve(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     count = m.sum(0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count > 0, (values * m).sum(0) / np.maximum(count, 1.0), np.nan)
+
+
+def curves_by_source_slot(values: np.ndarray, mask: np.ndarray, slot: np.ndarray) -> np.ndarray:
+    """[T, T]: row s is ``average_curve`` over the points detected at timestamp s (their
+    record's ``slot``); NaN where no point of slot s has a valid entry at t.
+
+    Why: with one cycle per timestamp (M = 1, as the paper's RobotCar), every timestamp is
+    the source of as many points, so the average curve of Fig. 6 is flat by symmetry: a
+    point is repeatable at its own hour and less so elsewhere, whichever hour it was
+    detected at. Its rows show what a map built at one time keeps at every other: e.g. a
+    daytime point at night.
+    """
+    T = values.shape[1]
+    out = np.full((T, T), np.nan)
+    for s in range(T):
+        sel = slot == s
+        if sel.any():
+            out[s] = average_curve(values[sel], mask[sel])
+    return out
 
 
 def curve_corr(pred: np.ndarray, label: np.ndarray, mask: np.ndarray) -> float:

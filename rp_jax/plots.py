@@ -30,6 +30,7 @@ __all__ = [
     "pick_examples",
     "coinciding",
     "save_figure",
+    "plot_curves_by_source_slot",
 ]
 
 
@@ -144,6 +145,61 @@ def plot_average_curves(
     ax.set_xlabel("timestamp")
     ax.set_title(title)
     ax.legend(loc="best", fontsize="small")
+    return save_figure(fig, out)
+
+
+def plot_curves_by_source_slot(
+    gt: np.ndarray,
+    pred: np.ndarray,
+    slot_labels: Sequence[str],
+    out: str | Path,
+    *,
+    source: int | None = None,
+    title: str = "Repeatability by the time a point was detected",
+) -> Path:
+    """What a point detected at one timestamp keeps at every other: the ground-truth and
+    predicted [T, T] ``evaluation.curves_by_source_slot`` as two maps (row: the source
+    timestamp; the own timestamp, the same traversal minutes apart, left blank so that it
+    does not set the scale), and the curves of the points detected at ``source`` (default:
+    the middle of the cycle).
+
+    Returns:
+      ``out``.
+    """
+    gt, pred = np.asarray(gt, np.float64), np.asarray(pred, np.float64)
+    T = gt.shape[0]
+    if gt.shape != (T, T) or pred.shape != (T, T) or len(slot_labels) != T:
+        raise ValueError(f"expected two [T, T] maps and T labels, got {gt.shape}, "
+                         f"{pred.shape} and {len(slot_labels)} labels")
+    off = ~np.eye(T, dtype=bool)
+    finite = np.concatenate([m[off & np.isfinite(m)] for m in (gt, pred)])
+    vmax = float(np.quantile(finite, 0.99)) if finite.size else 1.0
+    source = T // 2 if source is None else source
+    step = max(1, T // 8)
+    fig = _new_figure(15.0, 4.8)
+    fig.set_layout_engine("constrained")  # the colour bars beside their maps, not over
+    for k, (name, m) in enumerate((("ground truth", gt), ("RP prediction", pred))):
+        ax = fig.add_subplot(1, 3, k + 1)
+        shown = np.where(off, m, np.nan)
+        im = ax.imshow(shown, vmin=0.0, vmax=vmax, cmap="viridis", origin="upper")
+        ax.set_xticks(range(0, T, step), [slot_labels[i] for i in range(0, T, step)],
+                      rotation=45, ha="right", fontsize="small")
+        ax.set_yticks(range(0, T, step), [slot_labels[i] for i in range(0, T, step)],
+                      fontsize="small")
+        ax.set_xlabel("timestamp t")
+        ax.set_ylabel("detected at")
+        ax.set_title(f"{name} (own timestamp blank)")
+        fig.colorbar(im, ax=ax, shrink=0.85)
+    ax = fig.add_subplot(1, 3, 3)
+    _draw(ax, {name: np.where(off[source], m[source], np.nan)
+               for name, m in (("ground truth", gt), ("RP prediction", pred))}, slot_labels)
+    ax.axvline(source, color="grey", linestyle=":", linewidth=1)
+    ax.set_ylabel("repeatability")
+    ax.set_xlabel("timestamp t")
+    ax.set_title(f"points detected at {slot_labels[source]} (dotted: their own timestamp, "
+                 "left out)", fontsize="small")
+    ax.legend(loc="best", fontsize="small")
+    fig.suptitle(title)
     return save_figure(fig, out)
 
 
@@ -426,6 +482,14 @@ def experiment_figures(
             f"not by error), {name}",
         )
     )
+    if "by_source_slot" in metrics:
+        paths.append(
+            plot_curves_by_source_slot(
+                metrics["by_source_slot"]["gt"], metrics["by_source_slot"]["pred"], labels,
+                workdir / "fig6_by_source_time.png",
+                title=f"What a point detected at one time keeps at the others, {name}",
+            )
+        )
     if "per_category" in metrics:
         groups = {
             g: {

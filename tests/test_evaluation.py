@@ -25,6 +25,20 @@ def test_average_curve_and_corr():
     assert np.isnan(ev.curve_corr(np.ones_like(label), label, mask))
 
 
+def test_curves_by_source_slot_average_each_sources_points_only():
+    # Two points detected at slot 0 (by day), one at slot 2 (at night); T = 3.
+    label = np.array([[0.9, 0.4, 0.0], [0.7, 0.2, 0.1], [0.0, 0.3, 0.8]])
+    mask = np.array([[True, True, True], [True, False, True], [True, True, True]])
+    m = ev.curves_by_source_slot(label, mask, np.array([0, 0, 2]))
+    np.testing.assert_allclose(m[0], [0.8, 0.4, 0.05])  # slot 1 of the 2nd point unobserved
+    assert np.isnan(m[1]).all()  # no point detected at slot 1
+    np.testing.assert_allclose(m[2], [0.0, 0.3, 0.8])
+    # Its rows weighted by their observed points give back the average curve.
+    counts = np.array([[2, 1, 2], [0, 0, 0], [1, 1, 1]])
+    np.testing.assert_allclose(np.nansum(m * counts, 0) / counts.sum(0),
+                               ev.average_curve(label, mask))
+
+
 def test_slot_conditioned_mean_uses_capture_slot_and_falls_back():
     label = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.6, 0.2]])
     mask = np.ones_like(label, bool)

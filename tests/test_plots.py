@@ -31,6 +31,19 @@ def test_average_curves_png(tmp_path):
     assert not list(out.parent.glob(".*.png")), "temporary file left behind"
 
 
+def test_curves_by_source_slot_png(tmp_path):
+    labels = preset("robotcar_day").labels
+    T = len(labels)
+    day = np.array([0.0 if h < 6 or h > 19 else 0.1 for h in range(T)])
+    across = np.outer(day > 0, day) + np.outer(day == 0, 0.1 - day)  # day keeps day, night
+    gt = np.where(np.eye(T, dtype=bool), 0.6, across)
+    gt[3] = np.nan  # no point detected at 3:00
+    out = plots.plot_curves_by_source_slot(gt, gt * 0.9, labels, tmp_path / "by_source.png")
+    assert out.exists() and _coloured_pixels(out) > 1000
+    with pytest.raises(ValueError, match=r"\[T, T\] maps and T labels"):
+        plots.plot_curves_by_source_slot(gt[:3], gt, labels, tmp_path / "bad.png")
+
+
 def test_an_empty_figure_has_no_coloured_lines(tmp_path):
     labels = preset("cmu_seasons").labels
     out = plots.plot_average_curves(

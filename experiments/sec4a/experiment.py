@@ -148,6 +148,11 @@ def run(
             "pred": evaluation.average_curve(pred, mask).tolist(),
             **{name: evaluation.average_curve(p, mask).tolist() for name, p in baselines.items()},
         },
+        # Rows: the records' own timestamp (what a map built then keeps at every other).
+        "by_source_slot": {
+            "gt": evaluation.curves_by_source_slot(label, mask, test["slot"]).tolist(),
+            "pred": evaluation.curves_by_source_slot(pred, mask, test["slot"]).tolist(),
+        },
         "schedule": {"name": schedule.name, "labels": list(schedule.labels)},
         "dataset": {"name": config.input.dataset, "config": config.input.data_config},
     }

@@ -10,6 +10,7 @@ import pytest
 
 from experiments import cli
 from experiments.cmu_seasons.config import get_config as cmu_config
+from experiments.robotcar_day.config import get_config as robotcar_day_config
 from experiments.webcam_clipart.config import get_config as webcam_config
 from tests.datasets._tiny import tiny_data_copy
 
@@ -36,6 +37,8 @@ def _not_blank(path):
             {"fig6_average_repeatability.png", "fig7_examples.png", "fig9_categories.png",
              "learning_curve.png"},
         ),
+        ("robotcar_day", robotcar_day_config,
+         {"fig6_average_repeatability.png", "fig6_by_source_time.png", "fig7_examples.png"}),
     ],
 )
 def test_experiment_tiny(tmp_path, tmp_path_factory, monkeypatch, name, get_config, figures):
@@ -61,6 +64,13 @@ def test_experiment_tiny(tmp_path, tmp_path_factory, monkeypatch, name, get_conf
         assert mse_slot * (1 - 1e-9) <= mse <= T * mse_slot * (1 + 1e-9), m
     assert metrics["counts"]["train"] > 0 and metrics["counts"]["test"] > 0
     assert len(metrics["curves"]["gt"]) == len(metrics["schedule"]["labels"])
+    # What the points detected at each timestamp keep at every other: a T x T map each.
+    by_source = metrics["by_source_slot"]
+    assert np.asarray(by_source["gt"], float).shape == (T, T) == np.asarray(
+        by_source["pred"], float).shape
+    if name == "robotcar_day":  # driven at 1:00 and 13:00 only: the other rows are empty
+        detected = [s for s in range(T) if any(v is not None for v in by_source["gt"][s])]
+        assert detected == [1, 13]
     if name == "cmu_seasons":
         assert "per_category" in metrics and "building" in metrics["per_category"]
     assert figures <= set(metrics["figures"])
