@@ -49,6 +49,7 @@ __all__ = [
     "label_scale_table",
     "render_blocks",
     "replace_blocks",
+    "sec4a_by_source_table",
     "sec4a_headline",
     "sec4a_seed_table",
     "universal_rp_tables",
@@ -529,6 +530,44 @@ def universal_rp_tables(metrics: Mapping | None, path: Path = UNIVERSAL_RP) -> s
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
+# Hours dark in every month at Oxford (sunrise after 4:40 local time all year round) and
+# hours of daylight in every month (sunrise before 8:10, sunset after 15:50): the groups of
+# the whole-day table, so that no group mixes night and day whatever the traversal's month.
+DARK_HOURS = (0, 1, 2, 3)
+DAY_HOURS = (10, 11, 12, 13, 14)
+
+
+def sec4a_by_source_table(runs: Sequence[tuple[int, Mapping]]) -> str:
+    """What the points detected by day and at night keep at each: mean ground-truth and
+    predicted repeatability (``by_source_slot`` of a whole-day run) from each group of
+    source hours to each group of target hours, the point's own hour left out."""
+    if not runs:
+        return "_No whole-day run is committed yet._\n"
+    lines = ["| world seed | detected | ground truth by day | RP by day | ground truth at "
+             "night | RP at night |", "|---|---|---|---|---|---|"]
+
+    def mean(m, sources, targets) -> str:
+        vals = [m[s][t] for s in sources for t in targets
+                if s != t and m[s][t] is not None]
+        return f"{sum(vals) / len(vals):.3f}" if vals else "–"
+
+    for seed, metrics in runs:
+        by = metrics.get("by_source_slot")
+        labels = metrics["schedule"]["labels"]
+        if by is None or len(labels) != 24:
+            raise ValueError(f"seed {seed}: not a whole-day run with by_source_slot")
+        for name, sources in (("by day", DAY_HOURS), ("at night", DARK_HOURS)):
+            lines.append(f"| {seed} | {name} | " + " | ".join(
+                mean(by[k], sources, targets) for targets in (DAY_HOURS, DARK_HOURS)
+                for k in ("gt", "pred")) + " |")
+    day = f"{DAY_HOURS[0]}:00-{DAY_HOURS[-1]}:00"
+    dark = f"{DARK_HOURS[0]}:00-{DARK_HOURS[-1]}:00"
+    runs_text = "\n".join(f"- seed {seed}: {run_caption(m)}" for seed, m in runs)
+    return ("\n".join(lines) + f"\n\nMean repeatability over the test points detected by day "
+            f"({day}) or at night ({dark}), at the other hours of day ({day}) and of night "
+            f"({dark}); a point's own hour (its own traversal) left out. Runs:\n\n{runs_text}\n")
+
+
 # ----------------------------------------------------------------------------- the blocks
 
 def _sec4a(dataset: str) -> Callable[[Path], str]:
@@ -546,6 +585,9 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "sec4a_cmu_seasons": _sec4a("cmu_seasons"),
     "sec4a_webcam_clipart_categories": _sec4a_categories("webcam_clipart"),
     "sec4a_cmu_seasons_categories": _sec4a_categories("cmu_seasons"),
+    "sec4a_robotcar_day": _sec4a("robotcar_day"),
+    "sec4a_robotcar_day_by_source": lambda root: sec4a_by_source_table(
+        sec4a_runs(root, "robotcar_day")),
     "demo_line": lambda root: demo_line(sec4a_runs(root, "webcam_clipart")),
     "map_summarization_headline": lambda root: map_summarization_headline(
         read_json(root / MAPSUM)),
@@ -677,8 +719,9 @@ def collect(workdir: Path, name: str, root: Path = ROOT) -> Path:
     Raises:
       ValueError: ``NAME`` is not ``<dataset>_seed<N>`` or the workdir holds no finished run.
     """
-    if not re.fullmatch(r"(webcam_clipart|cmu_seasons)_seed\d+", name):
-        raise ValueError(f"--as {name}: expected <webcam_clipart|cmu_seasons>_seed<N>")
+    if not re.fullmatch(r"(webcam_clipart|cmu_seasons|robotcar_day)_seed\d+", name):
+        raise ValueError(
+            f"--as {name}: expected <webcam_clipart|cmu_seasons|robotcar_day>_seed<N>")
     src = Path(workdir) / "metrics.json"
     metrics = read_json(src)
     if metrics is None or "test_mae" not in metrics:

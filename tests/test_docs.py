@@ -119,7 +119,8 @@ def test_collect_stamps_the_run(tmp_path):
     assert "cores" in stamped["run"]["machine"]
     with pytest.raises(ValueError, match="a run of webcam_clipart, not of cmu_seasons_seed1"):
         docs_tables.collect(work, "cmu_seasons_seed1", root=tmp_path)
-    with pytest.raises(ValueError, match="expected <webcam_clipart|cmu_seasons>_seed<N>"):
+    with pytest.raises(ValueError, match=re.escape(
+            "expected <webcam_clipart|cmu_seasons|robotcar_day>_seed<N>")):
         docs_tables.collect(work, "seed1", root=tmp_path)
 
 
@@ -321,3 +322,25 @@ def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
     assert "| 10,000 | 2,500 | 0.250 |" in text
     assert "from 0.200 to 0.250 (+25% from the cheapest)" in text and "at most 490 MB" in text
     assert "No `label_scale` result" in docs_tables.label_scale_table({})
+
+
+def test_by_source_table_averages_each_group_without_the_own_hour():
+    T = 24
+    gt = [[0.0] * T for _ in range(T)]
+    for s in range(T):
+        for t in range(T):
+            if s in docs_tables.DAY_HOURS and t in docs_tables.DAY_HOURS:
+                gt[s][t] = 0.1
+            if s in docs_tables.DARK_HOURS and t in docs_tables.DARK_HOURS:
+                gt[s][t] = 0.2
+        gt[s][s] = 0.9  # the own hour: never averaged in
+    gt[1][2] = None  # a gap is skipped, not a zero
+    pred = [[v if v is None else v / 2 for v in row] for row in gt]
+    metrics = {"by_source_slot": {"gt": gt, "pred": pred},
+               "schedule": {"labels": [f"{h:02d}:00" for h in range(T)]},
+               "provenance": {"command": "python -m experiments.robotcar_day"}}
+    text = docs_tables.sec4a_by_source_table([(0, metrics)])
+    assert "| 0 | by day | 0.100 | 0.050 | 0.000 | 0.000 |" in text
+    assert "| 0 | at night | 0.000 | 0.000 | 0.200 | 0.100 |" in text
+    with pytest.raises(ValueError, match="not a whole-day run"):
+        docs_tables.sec4a_by_source_table([(0, {**metrics, "by_source_slot": None})])
