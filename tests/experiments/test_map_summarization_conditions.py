@@ -7,6 +7,7 @@ import pytest
 from experiments.map_summarization import conditions as mc
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
+from tests.datasets._tiny import tiny_data_copy
 
 RATIOS = ("0.5", "0.9")
 
@@ -16,8 +17,10 @@ def tiny(tmp_path_factory):
     """The command on the tiny world (the reference, dusk, night and rain traversals)."""
     tmp = tmp_path_factory.mktemp("mapsum_conditions")
     workdir = tmp / "run"
+    # The session's tiny whole-day RobotCar build (the rp_paper row's RP learns on it).
+    data_dir = tiny_data_copy(tmp_path_factory, ["robotcar_day"], tmp / "data")
     code = mc.main(["--size", "tiny", "--seeds", "0", "--workdir", str(workdir), "--quiet",
-                    "--data-dir", str(tmp / "data" / "tensorflow_datasets"),
+                    "--data-dir", str(data_dir),
                     f"--config.map.ratios=({','.join(RATIOS)})",
                     "--config.map.ransac_iterations=1000"])
     assert code == 0
@@ -65,12 +68,13 @@ def test_a_second_run_reuses_the_seeds(tiny, capsys):
     seed_file = workdir / "seed0" / "seed.json"
     label_file = workdir / "outcome_labels" / "robotcar_seasons_seed1.npz"
     fit_file = workdir / "outcome_scorer_robotcar_seasons" / "fit.json"
-    before = [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file)]
+    rp_log = workdir / "rp_day" / "metrics.jsonl"  # the whole-day RP: trained once
+    before = [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file, rp_log)]
     assert mc.main(["--size", "tiny", "--seeds", "0", "--workdir", str(workdir), "--quiet",
-                    "--data-dir", str(workdir.parent / "data" / "tensorflow_datasets"),
+                    "--data-dir", str(workdir.parent / "data" / "tfds"),
                     f"--config.map.ratios=({','.join(RATIOS)})",
                     "--config.map.ransac_iterations=1000"]) == 0
-    assert [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file)] == before
+    assert [f.stat().st_mtime_ns for f in (seed_file, label_file, fit_file, rp_log)] == before
     assert json.loads((workdir / "metrics.json").read_text())["accuracy"] == metrics["accuracy"]
 
 
