@@ -237,3 +237,17 @@ def test_contrasts_pair_the_rows_query_by_query():
     assert cell["difference"] == pytest.approx(100 * (3 - 2) / 6, abs=0.01)
     assert (cell["only_row"], cell["only_against"]) == (2, 1)
     assert mc.contrasts(per_seed, ["0.9"], mc.BASE_ROWS) == {}
+
+
+@pytest.mark.parametrize("size", ["tiny", "small", "full"])
+def test_the_whole_day_rp_is_the_model_its_own_experiment_trains(size):
+    # The by-condition run reuses a finished `python -m experiments.robotcar_day --size SIZE`
+    # in <workdir>/rp_day only if every field that makes the model is the same.
+    from experiments.map_summarization.train import day_config
+    from experiments.robotcar_day.config import get_config as day_experiment
+    from rp_jax.train import DATA_FIELDS, MODEL_FIELDS, field_value
+
+    ours, theirs = day_config(mc.get_config(size)).to_dict(), day_experiment(size).to_dict()
+    for field in (*MODEL_FIELDS, *DATA_FIELDS, "train.num_epochs", "model.time_fields"):
+        assert field_value(ours, field) == field_value(theirs, field), field
+    assert ours["input"]["schedule"] == "robotcar_day"
