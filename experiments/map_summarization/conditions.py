@@ -567,6 +567,23 @@ def _contrast_lines(metrics: Mapping) -> list[str]:
                                              "only twin", "minus K-cover"], rows), ""]
 
 
+def _auc_lines(metrics: Mapping) -> list[str]:
+    """How each row's score ranks the full map's PnP inliers (pooled over every condition):
+    its score's inlier AUC and that of what it selects (``pooling.pool``)."""
+    auc, selecting = metrics.get("inlier_auc") or {}, metrics.get("selecting_auc") or {}
+    rows = [(metrics["labels"].get(k, k),
+             [f"{auc[k]:.3f}" if auc.get(k) is not None else "–",
+              f"{selecting[k]:.3f}" if selecting.get(k) is not None else "–"])
+            for k in metrics["methods"] if k in auc or k in selecting]
+    if not rows:
+        return []
+    return ["### How each row ranks the full map's PnP inliers (exploratory)", "",
+            "Inlier AUC over the queries the full map localizes within (5 m, 10 deg), every "
+            "condition pooled: of the row's score (a set method: of what it keeps) and of what "
+            "it selects over pruning ratios 5 % to 95 %; 0.5 is chance:", "",
+            *_table("row", ["inlier AUC of its score", "selecting AUC"], rows), ""]
+
+
 def tables_markdown(metrics: Mapping) -> str:
     """The results tables of a run (what ``report.md`` and the documentation show): the
     primary comparison, the full map by condition, each condition group's accuracy and
@@ -614,6 +631,7 @@ def tables_markdown(metrics: Mapping) -> str:
                   *_table("threshold", _pct(ratios), [
                       (TH_NAME[th], [_gap_cell(group, r, th) for r in ratios])
                       for th in PRIMARY_THRESHOLDS]), ""]
+    lines += _auc_lines(metrics)
     lines += _contrast_lines(metrics)
     last = ratios[-1]
     conds = list(per)

@@ -57,6 +57,9 @@ def test_the_report_names_the_primary_comparison(tiny):
     text = (workdir / "report.md").read_text()
     assert "### Primary comparison: does knowing the condition help at night?" in text
     assert "### Full map by condition" in text
+    # Every row's inlier AUC, the paper's rule among them, in the report's own table.
+    auc_table = text.split("### How each row ranks the full map's PnP inliers")[1]
+    assert "| RP over the whole day, paper's rule |" in auc_table.split("###")[0]
     for name in metrics["figures"]:
         assert (workdir / name).stat().st_size > 0
     assert sorted(metrics["figures"]) == sorted(
