@@ -82,8 +82,8 @@ from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
 
 __all__ = ["BASE_ROWS", "CONDITION_GROUPS", "CONTRASTS", "OUTCOME_ROWS", "PRIMARY_GROUP",
            "PRIMARY_RATIOS", "ROBOTCAR_SEASONS", "ROWS", "RP_ROWS", "contrasts", "get_config",
-           "markdown",
-           "query_evidence", "restricted", "rows_of", "run", "tables_markdown", "validate"]
+           "markdown", "query_evidence", "restricted", "rows_of", "run", "tables_markdown",
+           "validate"]
 
 # The rows that need no trained model (``methods.py``), the paper's rule with the RobotCar
 # RP over the whole day (trained on another street: any layout), then the outcome scorer's
@@ -102,8 +102,8 @@ CONDITION_GROUPS = {
     "twilight": ("dawn", "dusk"),
     "day": ("overcast-summer", "overcast-winter", "rain", "snow", "sun"),
 }
-# The oracles' labels in this layout's words: a query's "date" is its traversal, one per
-# condition.
+# Labels in this layout's words: a query's "date" is its traversal, one per condition; the
+# paper's rule scores with the whole-day RP.
 CONDITION_LABELS = {
     "rp_paper": "RP over the whole day, paper's rule",
     "oracle_agnostic": "oracle: other conditions' re-detection (as many images)",
@@ -406,6 +406,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         rp, rp_counts = train_day_predictor(config, workdir / "rp_day", progress=progress)
         predictors["robotcar"] = rp
         timings["rp_day_s"] = round(time.perf_counter() - tic, 2)
+    if any(k in rows for k in OUTCOME_ROWS):
         tic = time.perf_counter()
         scorers = layout_outcomes.train_layout_scorers(
             config, ROBOTCAR_SEASONS, workdir, place=ROBOTCAR_LOCATION, progress=progress)

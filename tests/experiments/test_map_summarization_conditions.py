@@ -254,3 +254,33 @@ def test_the_whole_day_rp_is_the_model_its_own_experiment_trains(size):
     for field in (*MODEL_FIELDS, *DATA_FIELDS, "train.num_epochs", "model.time_fields"):
         assert field_value(ours, field) == field_value(theirs, field), field
     assert ours["input"]["schedule"] == "robotcar_day"
+
+
+def test_a_given_layout_trains_the_rp_and_never_the_outcome_scorers(tmp_path, monkeypatch):
+    class Reached(Exception):
+        pass
+
+    trained = []
+
+    class FakeRP:
+        params: dict = {}
+
+    def fake_rp(config, rp_dir, progress=True):
+        trained.append(rp_dir.name)
+        return FakeRP(), {}
+
+    def no_scorers(*args, **kwargs):
+        raise AssertionError("a given layout has no other world to label the scorers from")
+
+    def evaluate(config, seed, predictors, *args, **kwargs):
+        assert set(predictors) == {"robotcar"} and kwargs["row_names"] == mc.rows_of(config)
+        raise Reached
+
+    monkeypatch.setattr(mc, "train_day_predictor", fake_rp)
+    monkeypatch.setattr(mc.layout_outcomes, "train_layout_scorers", no_scorers)
+    monkeypatch.setattr(mc, "evaluate_world", evaluate)
+    config = mc.get_config("tiny")
+    config.map.root = str(tmp_path / "layout")
+    with pytest.raises(Reached):
+        mc.run(config, tmp_path / "run", progress=False)
+    assert trained == ["rp_day"]
