@@ -530,9 +530,10 @@ def universal_rp_tables(metrics: Mapping | None, path: Path = UNIVERSAL_RP) -> s
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
-# Hours dark in every month at Oxford (sunrise after 4:40 local time all year round) and
-# hours of daylight in every month (sunrise before 8:10, sunset after 15:50): the groups of
-# the whole-day table, so that no group mixes night and day whatever the traversal's month.
+# The groups of the whole-day table, so that no group mixes night and day whatever month a
+# traversal was driven in: at Oxford (rp_jax.sun, NOAA, every 5 minutes of every day of
+# 2015) the sun stays below -6 deg, past civil twilight, from 0:00 to 4:00 local time, and
+# at least 5.8 deg up from 10:00 to 15:00.
 DARK_HOURS = (0, 1, 2, 3)
 DAY_HOURS = (10, 11, 12, 13, 14)
 

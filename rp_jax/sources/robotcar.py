@@ -426,7 +426,7 @@ def read(
       schedule: defaults to ``preset(spec_name)`` (``robotcar``: 9 hourly slots 9:00-17:00).
       viewpoint_list: a ``viewpoint,latitude,longitude,yaw_deg`` CSV or a list of
         ``ListedViewpoint``; default ``<root>/viewpoints.csv``, then the CSV named by
-        ``viewpoints_csv`` in ``data_specs/robotcar.json``. With none, images are grouped
+        ``viewpoints_csv`` in ``data_specs/<spec_name>.json``. With none, images are grouped
         by pose (``group_viewpoints.group_by_pose``, radius_m and max_yaw_deg) with a warning.
       traversals: only these traversal folder names.
       models_dir, extrinsics_dir: the SDK folders; default ``<root>/models`` and

@@ -99,7 +99,7 @@ def test_stacked_groups_offset_their_point_rows():
     assert stack.pair_point.tolist() == [0, 3, 5]
 
 
-def test_scorers_trained_without_rp_columns_never_read_them():
+def test_reads_rp_says_whether_the_scorers_learned_with_rp_columns():
     from experiments.map_summarization.outcome_scorer import OutcomeScorers
     from rp_jax.mapsum.outcome_scorer import point_feature_names
 
