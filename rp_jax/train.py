@@ -52,6 +52,7 @@ __all__ = [
     "train_step",
     "eval_step",
     "train_and_evaluate",
+    "finished_run",
     "evaluate",
     "NonFiniteLossError",
     "WorkdirMismatchError",
@@ -440,6 +441,38 @@ def _has_checkpoint(directory: Path) -> bool:
     manager = checkpoints.reader(directory)
     try:
         return manager.latest_step() is not None
+    finally:
+        manager.close()
+
+
+def finished_run(workdir: str | os.PathLike, config: ml_collections.ConfigDict) -> bool:
+    """Whether ``workdir`` holds a finished run of ``config``: its last ``metrics.jsonl``
+    epoch is ``config.train.num_epochs`` and its last checkpoint is that epoch's step.
+
+    What ``train_and_evaluate`` would return at once on it, without compiling, reading the
+    training data or taking the workdir's lock, so that a command reusing a trained model
+    (and several at the same time) only loads it. An unfinished, interrupted or absent run
+    is not finished (``train_and_evaluate`` resumes or starts it).
+
+    Raises:
+      WorkdirMismatchError: the workdir is a file or holds a run of another config (as
+        ``check_workdir``).
+    """
+    workdir = Path(workdir)
+    check_workdir(workdir, config)
+    metrics_path = workdir / "metrics.jsonl"
+    if not metrics_path.is_file() or not (workdir / checkpoints.CHECKPOINTS_DIR).is_dir():
+        return False
+    lines = [line for line in metrics_path.read_text().splitlines() if line.strip()]
+    try:
+        last = json.loads(lines[-1]) if lines else {}
+    except json.JSONDecodeError:
+        return False  # a line cut short: train_and_evaluate decides from the checkpoints
+    if last.get("epoch") != int(config.train.num_epochs):
+        return False
+    manager = checkpoints.reader(workdir / checkpoints.CHECKPOINTS_DIR)
+    try:
+        return manager.latest_step() == last.get("step")
     finally:
         manager.close()
 

@@ -96,10 +96,13 @@ def test_resume_equals_uninterrupted(tmp_path):
         if epoch == 1:
             raise Killed
 
+    assert not train.finished_run(tmp_path / "b", config)  # nothing there yet
     with pytest.raises(Killed):
         train.train_and_evaluate(config, tmp_path / "b", src, val, progress=False,
                                  on_epoch_end=kill_after_first)
+    assert not train.finished_run(tmp_path / "b", config)  # 1 of 3 epochs: it resumes
     resumed = train.train_and_evaluate(config, tmp_path / "b", src, val, progress=False)
+    assert train.finished_run(tmp_path / "b", config) and train.finished_run(tmp_path / "a", config)
     assert int(resumed.step) == int(full.step)
     chex.assert_trees_all_close(train.params_to_numpy(resumed.params),
                                 train.params_to_numpy(full.params), atol=1e-6)
@@ -119,6 +122,11 @@ def test_refuses_a_workdir_of_another_config(tmp_path):
     model.model.encoder_features = 16
     with pytest.raises(train.WorkdirMismatchError, match=r"model\.encoder_features: 32 there"):
         train.train_and_evaluate(model, tmp_path, src, progress=False)
+    with pytest.raises(train.WorkdirMismatchError, match=r"model\.encoder_features: 32 there"):
+        train.finished_run(tmp_path, model)  # never taken for a finished run of this config
+    with pytest.raises(train.WorkdirMismatchError, match=r"train\.num_epochs=1, asked"):
+        train.finished_run(tmp_path, small_config(num_epochs=2))
+    assert train.finished_run(tmp_path, small_config(num_epochs=1))
 
 
 def _experiment_config(**runtime):

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import json
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import ml_collections
 import numpy as np
 
 from experiments import records
-from rp_jax import predict, train
+from rp_jax import files, predict, train
 from rp_jax import schedule as schedule_lib
 
 __all__ = [
@@ -42,8 +44,26 @@ def rp_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
     return cfg
 
 
-def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
-    """Hold out validation viewpoints of ``cols``, train in ``rp_dir`` (resumes), load it."""
+TRAINING_COUNTS = "training_counts.json"
+
+
+def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_size: int,
+         progress: bool, asked: Mapping | None = None):
+    """Train in ``rp_dir`` on the records ``columns()`` gives (with counts of its own to
+    report), validation viewpoints held out; (predictor, counts). Resumes an interrupted run.
+
+    A finished run of ``cfg`` there whose ``training_counts.json`` was written for the same
+    ``asked`` (what selects the records beyond the config, e.g. excluded slices) is loaded
+    as it is: the training records are not read and nothing is compiled or locked, so a
+    command run again, or several at once, only load the model.
+    """
+    asked = dict(asked or {})
+    counts_path = rp_dir / TRAINING_COUNTS
+    if train.finished_run(rp_dir, cfg) and counts_path.is_file():
+        saved = json.loads(counts_path.read_text())
+        if saved.get("asked") == asked:
+            return predict.load(rp_dir, batch_size=batch_size), saved["counts"]
+    cols, more_counts = columns()
     val_mask = records.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
                                            cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
@@ -61,23 +81,27 @@ def _fit(cfg, rp_dir: Path, cols: dict, *, batch_size: int, progress: bool):
         "validation_points": int(val_mask.sum()),
         "train_viewpoints": len(set(train_cols["viewpoint"].tolist())),
         "validation_viewpoints": len(set(val_cols["viewpoint"].tolist())),
+        **more_counts,
     }
+    files.write_json(counts_path, {"asked": asked, "counts": counts})
     return predict.load(rp_dir, batch_size=batch_size), counts
 
 
-def _train_columns(cfg, rp_dir: Path) -> dict:
+def _train_columns(cfg, rp_dir: Path) -> tuple[dict, dict]:
+    """The dataset's training records (built if absent), and no counts of their own."""
     data = records.build_dataset(cfg, rp_dir)
     cols = data.get("train")
     if cols is None or len(cols["label"]) == 0:
         raise ValueError(f"{cfg.input.dataset}/{cfg.input.data_config}: no training records")
-    return cols
+    return cols, {}
 
 
 def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress: bool = True):
-    """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes); (predictor, counts)."""
+    """Build the RobotCar dataset, train the RP in ``rp_dir`` (resumes; a finished run is
+    loaded without reading the records); (predictor, counts)."""
     cfg = rp_config(config)
-    cols = _train_columns(cfg, rp_dir)
-    return _fit(cfg, rp_dir, cols, batch_size=config.eval.batch_size, progress=progress)
+    return _fit(cfg, rp_dir, lambda: _train_columns(cfg, rp_dir),
+                batch_size=config.eval.batch_size, progress=progress)
 
 
 def day_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -100,10 +124,11 @@ def day_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
 def train_day_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *,
                         progress: bool = True):
     """The whole-day RobotCar RP (``day_config``) trained on the ``robotcar_day`` training
-    viewpoints in ``rp_dir`` (resumes; a finished run is reused); (predictor, counts)."""
+    viewpoints in ``rp_dir`` (resumes; a finished run is loaded without reading the
+    records); (predictor, counts)."""
     cfg = day_config(config)
-    return _fit(cfg, rp_dir, _train_columns(cfg, rp_dir), batch_size=config.eval.batch_size,
-                progress=progress)
+    return _fit(cfg, rp_dir, lambda: _train_columns(cfg, rp_dir),
+                batch_size=config.eval.batch_size, progress=progress)
 
 
 def cmu_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -137,23 +162,21 @@ def train_cmu_predictor(
     held-out training slice never trains on that slice.
     """
     cfg = cmu_config(config)
-    cols = _train_columns(cfg, rp_dir)
-    slice_of = np.array(
-        [(v.decode() if isinstance(v, bytes) else str(v)).split("/")[0] for v in cols["viewpoint"]]
-    )
-    keep = ~np.isin(slice_of, [f"slice{s}" for s in exclude_slices])
-    if not keep.any():
-        raise ValueError(f"no CMU training records outside slices {list(exclude_slices)}")
-    predictor, counts = _fit(
-        cfg,
-        rp_dir,
-        {k: v[keep] for k, v in cols.items()},
-        batch_size=config.eval.batch_size,
-        progress=progress,
-    )
-    counts["train_slices"] = sorted(set(slice_of[keep].tolist()))
-    counts["excluded_slices"] = [f"slice{s}" for s in exclude_slices]
-    return predictor, counts
+    excluded = [f"slice{s}" for s in exclude_slices]
+
+    def columns():
+        cols, _ = _train_columns(cfg, rp_dir)
+        slice_of = np.array([(v.decode() if isinstance(v, bytes) else str(v)).split("/")[0]
+                             for v in cols["viewpoint"]])
+        keep = ~np.isin(slice_of, excluded)
+        if not keep.any():
+            raise ValueError(f"no CMU training records outside slices {list(exclude_slices)}")
+        return ({k: v[keep] for k, v in cols.items()},
+                {"train_slices": sorted(set(slice_of[keep].tolist())),
+                 "excluded_slices": excluded})
+
+    return _fit(cfg, rp_dir, columns, batch_size=config.eval.batch_size, progress=progress,
+                asked={"excluded_slices": excluded})
 
 
 def _conditional_settings(cfg, epochs: int):
