@@ -9,7 +9,10 @@ Each process (every xdist worker) appends JSON lines to ``<dir>/<worker>.jsonl``
 test phase (set-up, call, tear-down) and one per fixture set-up, each with its wall seconds
 and its CPU seconds (this process's, all threads, plus those of the child processes it
 waited for in the meantime). On a machine others share, wall time follows the load; CPU
-time much less so, which is why both are kept.
+time much less so, which is why both are kept. Each row also has the seconds this process
+spent making JAX programs in the meantime (``jax.monitoring``'s duration events: tracing to
+a jaxpr, lowering to MLIR, XLA's backend compile; a program read from the compilation cache
+costs its tracing and lowering only); those of the commands a test starts are not seen.
 """
 
 from __future__ import annotations
@@ -44,6 +47,17 @@ class _Recorder:
 
 
 _recorder: _Recorder | None = None
+# Seconds per jax.monitoring duration event, summed since the process started.
+_EVENTS = {"/jax/core/compile/jaxpr_trace_duration": "trace",
+           "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
+           "/jax/core/compile/backend_compile_duration": "compile"}
+_jax_seconds = dict.fromkeys(_EVENTS.values(), 0.0)
+
+
+def _on_duration(event: str, seconds: float, **_) -> None:
+    name = _EVENTS.get(event)
+    if name is not None:
+        _jax_seconds[name] += seconds
 
 
 def pytest_configure(config):
@@ -51,6 +65,13 @@ def pytest_configure(config):
     folder = os.environ.get(TIMES_ENV)
     if folder:
         _recorder = _Recorder(Path(folder))
+        import jax.monitoring
+
+        jax.monitoring.register_event_duration_secs_listener(_on_duration)
+
+
+def _jax_since(before: dict) -> dict:
+    return {k: _jax_seconds[k] - before[k] for k in _jax_seconds}
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -58,22 +79,22 @@ def pytest_fixture_setup(fixturedef, request):
     if _recorder is None:
         yield
         return
-    wall, cpu = time.perf_counter(), _cpu()
+    wall, cpu, jx = time.perf_counter(), _cpu(), dict(_jax_seconds)
     yield
     _recorder.write(kind="fixture", name=fixturedef.argname, scope=fixturedef.scope,
                     file=request.node.nodeid.split("::")[0],
-                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu)
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, **_jax_since(jx))
 
 
 def _phase(item, when):
     if _recorder is None:
         yield
         return
-    wall, cpu = time.perf_counter(), _cpu()
+    wall, cpu, jx = time.perf_counter(), _cpu(), dict(_jax_seconds)
     yield
     _recorder.write(kind="test", name=item.nodeid, when=when,
                     file=item.nodeid.split("::")[0],
-                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu)
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, **_jax_since(jx))
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -98,11 +119,14 @@ def summary(folder: Path, top: int = 20) -> str:
     tests: dict = collections.defaultdict(lambda: [0.0, 0.0])
     files: dict = collections.defaultdict(lambda: [0.0, 0.0])
     fixtures: dict = collections.defaultdict(lambda: [0.0, 0.0, 0])
+    jax_by_test: dict = collections.defaultdict(lambda: dict.fromkeys(_EVENTS.values(), 0.0))
     for r in rows:
         if r["kind"] == "test":
             for table, key in ((tests, r["name"]), (files, r["file"])):
                 table[key][0] += r["wall"]
                 table[key][1] += r["cpu"]
+            for k in _EVENTS.values():
+                jax_by_test[r["name"]][k] += r.get(k, 0.0)
         else:
             f = fixtures[f"{r['file']}::{r['name']} ({r['scope']})"]
             f[0] += r["wall"]
@@ -118,6 +142,12 @@ def summary(folder: Path, top: int = 20) -> str:
         for key, v in sorted(table.items(), key=lambda kv: -kv[1][0])[:top]:
             extra = f" x{v[2]}" if len(v) > 2 and v[2] > 1 else ""
             out.append(f"{v[0]:8.1f} {v[1]:8.1f}  {key}{extra}")
+    totals = {k: sum(v[k] for v in jax_by_test.values()) for k in _EVENTS.values()}
+    out.append("\nJAX programs made in the test processes (trace + lower + XLA compile, s): "
+               + ", ".join(f"{k} {v:.1f}" for k, v in totals.items()))
+    out.append(f"Top {top} tests by it: trace, lower, compile s")
+    for key, v in sorted(jax_by_test.items(), key=lambda kv: -sum(kv[1].values()))[:top]:
+        out.append(f"{v['trace']:8.1f} {v['lower']:8.1f} {v['compile']:8.1f}  {key}")
     return "\n".join(out)
 
 
