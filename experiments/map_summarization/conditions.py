@@ -194,6 +194,9 @@ def ensure_layout(config, seed: int, *, progress: bool = True) -> Path:
 
         builder_lib.ensure_synthetic("robotcar_seasons", root, size=config.map.synthetic_size,
                                      seed=seed, workers=config.map.workers or None)
+    elif not root.is_dir():
+        raise LayoutError(f"{root}: no such folder (config.map.root: a {rcs.DATASET} layout "
+                          "as the synthetic world writes it)")
     if not (root / REFERENCE_MODEL_DIR).is_dir():
         raise LayoutError(
             f"{root}: no {REFERENCE_MODEL_DIR}/ (the reference traversal's COLMAP model with "
@@ -394,6 +397,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     validate(config)
     provenance.code()
     m = config.map
+    if m.root:  # a layout on disk is checked before anything is written or trained
+        ensure_layout(config, 0, progress=progress)
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
     rows = rows_of(config)

@@ -281,6 +281,12 @@ def test_a_given_layout_trains_the_rp_and_never_the_outcome_scorers(tmp_path, mo
     monkeypatch.setattr(mc, "evaluate_world", evaluate)
     config = mc.get_config("tiny")
     config.map.root = str(tmp_path / "layout")
+    with pytest.raises(LayoutError, match="layout: no such folder"):  # checked before training
+        mc.run(config, tmp_path / "run", progress=False)
+    assert trained == [] and not (tmp_path / "run").exists()
+    (tmp_path / "layout" / mc.REFERENCE_MODEL_DIR).mkdir(parents=True)  # what it checks
+    (tmp_path / "layout" / mc.V2_QUERIES).parent.mkdir(parents=True)
+    (tmp_path / "layout" / mc.V2_QUERIES).touch()
     with pytest.raises(Reached):
         mc.run(config, tmp_path / "run", progress=False)
     assert trained == ["rp_day"]
