@@ -193,10 +193,13 @@ def load_config(parser: argparse.ArgumentParser, default: Callable[[], ml_collec
 
 
 def build_parser(name: str, doc: str, *, default_size: str = "full",
-                 cross_validation: bool = False) -> argparse.ArgumentParser:
-    """The experiments' argparse parser (``--config.FIELD=VALUE`` are parsed apart)."""
+                 cross_validation: bool = False, module: str | None = None
+                 ) -> argparse.ArgumentParser:
+    """The experiments' argparse parser (``--config.FIELD=VALUE`` are parsed apart); its
+    program is ``python -m experiments.<module>`` (default ``name``, which also names the
+    default workdir)."""
     parser = argparse.ArgumentParser(
-        prog=f"python -m experiments.{name}", description=doc,
+        prog=f"python -m experiments.{module or name}", description=doc,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="--config.FIELD=VALUE  override one field of the config (ml_collections."
         "config_flags: tuples as (8,8,16), bools as true/false or --config.FIELD / "
@@ -238,14 +241,17 @@ def parse_flags(argv: list[str] | None, name: str,
                 get_config: Callable[[str], ml_collections.ConfigDict], doc: str, *,
                 cross_validation: bool = False, default_size: str = "full",
                 add_flags: Callable[[argparse.ArgumentParser], None] | None = None,
+                module: str | None = None,
                 ) -> tuple[ml_collections.ConfigDict, Path, argparse.Namespace]:
     """Parse the flags into (config, workdir, the parsed flags).
 
     ``cross_validation`` adds ``--cross-validate`` and ``--folds`` (the Sec. IV-A
     experiments); ``default_size`` is the ``--size`` when none is given; ``add_flags`` adds
-    an experiment's own flags. ``--print-config`` prints the config and exits (status 0).
+    an experiment's own flags; ``module`` the command's module where it is not ``name``.
+    ``--print-config`` prints the config and exits (status 0).
     """
-    parser = build_parser(name, doc, default_size=default_size, cross_validation=cross_validation)
+    parser = build_parser(name, doc, default_size=default_size, cross_validation=cross_validation,
+                          module=module)
     if add_flags is not None:
         add_flags(parser)
     args, rest = parser.parse_known_args(sys.argv[1:] if argv is None else argv)

@@ -696,7 +696,8 @@ def main(argv: list[str] | None = None) -> int:
                             help="synthetic world seeds (default 0,1,2,3,4; tiny: 0)")
 
     config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
-                                            default_size="small", add_flags=add_flags)
+                                            default_size="small", add_flags=add_flags,
+                                            module="map_summarization.conditions")
     if args.seeds is not None:
         config.map.seeds = args.seeds
     from rp_jax import platform

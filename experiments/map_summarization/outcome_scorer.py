@@ -780,7 +780,8 @@ def main(argv: list[str] | None = None) -> int:
                             help="also train without each feature group")
 
     config, workdir, args = cli.parse_flags(argv, "map_summarization", get_config, __doc__,
-                                            default_size="small", add_flags=add_flags)
+                                            default_size="small", add_flags=add_flags,
+                                            module="map_summarization.outcome_scorer")
     from rp_jax import platform, progress
 
     if args.quiet:

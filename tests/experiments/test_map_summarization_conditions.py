@@ -162,6 +162,14 @@ def test_a_layout_without_its_reference_model_is_refused(tmp_path):
         mc.ensure_layout(config, 0, progress=False)
 
 
+def test_a_bad_flag_names_the_command_as_it_is_typed(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        mc.main(["--seeds", "0,x", "--workdir", str(tmp_path / "w")])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1].startswith(
+        "python -m experiments.map_summarization.conditions: error: argument --seeds: '0,x'")
+
+
 def test_unknown_conditions_are_refused_before_any_work(tmp_path, capsys):
     code = mc.main(["--size", "tiny", "--workdir", str(tmp_path / "w"),
                     "--config.map.conditions=('night','midnight')"])
