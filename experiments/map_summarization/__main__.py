@@ -8,8 +8,9 @@ the queries of every date and writes metrics.json (accuracy with 95 % bootstrap 
 the paired difference to K-cover with a 95 % interval clustered by world seed and date,
 exact McNemar p-values as exploratory figures, inlier and selecting AUCs), report.md, the
 Fig. 11 figures and per-seed submissions into the workdir. Flags: --workdir, --manual-dir,
---size tiny|small|full (default small here), --seeds 0,1,2, --data-dir, --config FILE,
---config.FIELD=VALUE, --print-config, --quiet.
+--size tiny|small|full (default small here), --seeds 0,1,2, --processes N (seeds evaluated
+at once, each in a process of its own), --data-dir, --config FILE, --config.FIELD=VALUE,
+--print-config, --quiet.
 """
 
 import argparse
@@ -29,6 +30,7 @@ def _add_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                         help="synthetic world seeds the maps are built on (default "
                         "--config.map.seeds, 0,1,2)")
+    cli.add_processes(parser)
 
 
 def parse(argv: list[str] | None = None):
@@ -63,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2
     try:
-        metrics = experiment.run(config, workdir)
+        metrics = experiment.run(config, workdir, processes=args.processes)
     except LayoutError as e:  # a --manual-dir that is not the dataset's layout
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2

@@ -45,6 +45,7 @@ its twin and against K-cover, per condition group (``contrasts``).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -56,7 +57,7 @@ import ml_collections
 import numpy as np
 
 from experiments import provenance, run_files
-from experiments.map_summarization import layout_outcomes, methods
+from experiments.map_summarization import layout_outcomes, methods, seed_processes
 from experiments.map_summarization.config import get_config as mapsum_config
 from experiments.map_summarization.pooling import (
     MAIN_THRESHOLD,
@@ -388,24 +389,23 @@ def contrasts(per_seed: Sequence[Mapping], ratios, rows: Sequence[str]) -> dict:
     return out
 
 
-def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
-        progress: bool = True) -> dict:
-    """Every world seed, every row, pooled and by condition; writes ``metrics.json``,
-    ``report.md`` and one accuracy-vs-pruning figure per condition group."""
-    from rp_jax import plots
+@dataclasses.dataclass
+class _Models:
+    """The trained models a run's rows score with, and the fingerprint they give."""
 
-    validate(config)
-    provenance.code()
-    m = config.map
-    if m.root:  # a layout on disk is checked before anything is written or trained
-        ensure_layout(config, 0, progress=progress)
-    workdir = Path(workdir).absolute()
-    workdir.mkdir(parents=True, exist_ok=True)
-    rows = rows_of(config)
-    seeds = [0] if m.root else [int(s) for s in m.seeds]
+    predictors: dict
+    fingerprint: str
+    timings: dict
+    rp: object | None = None
+    rp_counts: dict | None = None
+    scorers: object | None = None
+
+
+def _models(config, workdir: Path, rows: Sequence[str], *, progress: bool) -> _Models:
+    """Train (or load, where trained) the whole-day RP and the outcome scorers the rows need."""
     timings: dict[str, float] = {}
     predictors: dict = {}
-    scorers = rp = None
+    scorers = rp = rp_counts = None
     if any(k in rows for k in RP_ROWS):
         tic = time.perf_counter()
         rp, rp_counts = train_day_predictor(config, workdir / "rp_day", progress=progress)
@@ -417,12 +417,56 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
             config, ROBOTCAR_SEASONS, workdir, place=ROBOTCAR_LOCATION, progress=progress)
         predictors.update(outcome=scorers, outcome_agnostic=scorers)
         timings["outcome_scorers_s"] = round(time.perf_counter() - tic, 2)
-    fingerprint = _fingerprint(config, scorers, rp)
+    return _Models(predictors, _fingerprint(config, scorers, rp), timings, rp, rp_counts,
+                   scorers)
+
+
+def evaluate_seed(config: ml_collections.ConfigDict, workdir: Path, seed: int,
+                  fingerprint: str) -> dict:
+    """One world seed with the run's models, loaded from ``workdir`` where the run trained
+    them (``seed_processes``: in a process of its own).
+
+    Raises:
+      ValueError: the models there give another fingerprint than the run's.
+    """
+    rows = rows_of(config)
+    models = _models(config, workdir, rows, progress=False)
+    if models.fingerprint != fingerprint:
+        raise ValueError(f"{workdir}: its models give the fingerprint {models.fingerprint}, "
+                         f"the run {fingerprint}: another run changed them meanwhile")
+    return evaluate_world(config, seed, models.predictors, workdir / f"seed{seed}",
+                          fingerprint=fingerprint, progress=False, layout=ROBOTCAR_SEASONS,
+                          row_names=rows)
+
+
+def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
+        progress: bool = True, processes: int = 1) -> dict:
+    """Every world seed, every row, pooled and by condition; writes ``metrics.json``,
+    ``report.md`` and one accuracy-vs-pruning figure per condition group. ``processes``:
+    world seeds evaluated at once, each in a process of its own (``seed_processes``; the
+    outcomes are the same)."""
+    from rp_jax import plots
+
+    validate(config)
+    provenance.code()
+    m = config.map
+    if m.root:  # a layout on disk is checked before anything is written or trained
+        ensure_layout(config, 0, progress=progress)
+    workdir = Path(workdir).absolute()
+    workdir.mkdir(parents=True, exist_ok=True)
+    rows = rows_of(config)
+    seeds = [0] if m.root else [int(s) for s in m.seeds]
+    models = _models(config, workdir, rows, progress=progress)
+    timings = dict(models.timings)
+    rp, rp_counts, scorers = models.rp, models.rp_counts, models.scorers
+    seed_processes.evaluate_in_processes(
+        __name__, config, workdir, seeds, models.fingerprint, processes,
+        prepare=lambda s: ensure_layout(config, s, progress=progress), progress=progress)
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()
-        per_seed.append(evaluate_world(config, seed, predictors, workdir / f"seed{seed}",
-                                       fingerprint=fingerprint, progress=progress,
+        per_seed.append(evaluate_world(config, seed, models.predictors, workdir / f"seed{seed}",
+                                       fingerprint=models.fingerprint, progress=progress,
                                        layout=ROBOTCAR_SEASONS, row_names=rows))
         timings[f"seed{seed}_s"] = round(time.perf_counter() - tic, 2)
     ratios = [f"{float(r):.1f}" for r in m.ratios]
@@ -694,6 +738,7 @@ def main(argv: list[str] | None = None) -> int:
     def add_flags(parser) -> None:
         parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                             help="synthetic world seeds (default 0,1,2,3,4; tiny: 0)")
+        cli.add_processes(parser)
 
     config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
                                             default_size="small", add_flags=add_flags,
@@ -709,7 +754,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = "python -m experiments.map_summarization.conditions"
     try:
         validate(config)
-        metrics = run(config, workdir)
+        metrics = run(config, workdir, processes=args.processes)
     except (ValueError, LayoutError) as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2

@@ -38,7 +38,7 @@ import ml_collections
 import numpy as np
 
 from experiments import provenance, run_files
-from experiments.map_summarization import methods, report
+from experiments.map_summarization import methods, report, seed_processes
 from experiments.map_summarization.methods import RP_RECIPES, methods_of, recipe_of
 from experiments.map_summarization.pooling import (
     MAIN_THRESHOLD,
@@ -50,7 +50,7 @@ from experiments.map_summarization.pooling import (
 )
 from experiments.map_summarization.queries import bucket
 from experiments.map_summarization.train import train_predictor
-from experiments.map_summarization.world import RESULT_VERSION, evaluate_world
+from experiments.map_summarization.world import CMU_SEASONS, RESULT_VERSION, evaluate_world
 from rp_jax import files, plots
 
 __all__ = [
@@ -84,18 +84,9 @@ def _fingerprint(config, params) -> str:
 # ----------------------------------------------------------------------------- run
 
 
-def run(
-    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
-) -> dict:
-    """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds."""
-    from experiments.map_summarization.config import validate
-
-    validate(config, workdir)  # before the predictor is trained: a bad field fails at once
-    provenance.code()  # the code this run starts with, whatever is committed while it runs
-    m = config.map
-    names = methods_of(config)
-    workdir = Path(workdir).absolute()
-    workdir.mkdir(parents=True, exist_ok=True)
+def _models(config, workdir: Path, *, progress: bool) -> tuple[dict, dict, dict, str]:
+    """(predictors, their training counts, timings, fingerprint): every model the rows
+    score with, trained in ``workdir`` (or loaded, where trained)."""
     timings: dict[str, float] = {}
     tic = time.perf_counter()
     predictor, rp_counts = train_predictor(config, workdir / "rp", progress=progress)
@@ -111,7 +102,46 @@ def run(
     # A model's weights are part of the fingerprint where it exposes them as ``params``.
     fingerprint = _fingerprint(
         config, {k: getattr(v, "params", None) for k, v in sorted(predictors.items())})
+    return predictors, training, timings, fingerprint
+
+
+def evaluate_seed(config: ml_collections.ConfigDict, workdir: Path, seed: int,
+                  fingerprint: str) -> dict:
+    """One world seed with the run's models, loaded from ``workdir`` where the run trained
+    them (``seed_processes``: in a process of its own).
+
+    Raises:
+      ValueError: the models there give another fingerprint than the run's.
+    """
+    predictors, _, _, own = _models(config, workdir, progress=False)
+    if own != fingerprint:
+        raise ValueError(f"{workdir}: its models give the fingerprint {own}, the run "
+                         f"{fingerprint}: another run changed them meanwhile")
+    return evaluate_world(config, seed, predictors, workdir / f"seed{seed}",
+                          fingerprint=fingerprint, progress=False)
+
+
+def run(
+    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True,
+    processes: int = 1,
+) -> dict:
+    """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds.
+    ``processes``: world seeds evaluated at once, each in a process of its own
+    (``seed_processes``; the outcomes are the same)."""
+    from experiments.map_summarization.config import validate
+
+    validate(config, workdir)  # before the predictor is trained: a bad field fails at once
+    provenance.code()  # the code this run starts with, whatever is committed while it runs
+    m = config.map
+    names = methods_of(config)
+    workdir = Path(workdir).absolute()
+    workdir.mkdir(parents=True, exist_ok=True)
+    predictors, training, timings, fingerprint = _models(config, workdir, progress=progress)
+    predictor, rp_counts = predictors["robotcar"], training["robotcar"]
     seeds = [0] if config.input.data_config == "real" or m.root else [int(s) for s in m.seeds]
+    seed_processes.evaluate_in_processes(
+        __name__, config, workdir, seeds, fingerprint, processes,
+        prepare=lambda s: CMU_SEASONS.ensure(config, s, progress=progress), progress=progress)
     per_seed = []
     for seed in seeds:
         tic = time.perf_counter()

@@ -130,6 +130,14 @@ def test_outputs_written_and_a_rerun_reuses_the_seed(tiny_run):
     assert main(argv) == 0
     assert os.stat(seed_dir / "seed.json").st_mtime_ns == mtime
     assert json.loads((workdir / "metrics.json").read_text())["accuracy"] == metrics["accuracy"]
+    # A seed's own process (--processes) loads the run's models from the workdir and finds
+    # the run's fingerprint: it reads the finished seed; another fingerprint is refused.
+    config, _ = parse(argv)
+    done = json.loads((seed_dir / "seed.json").read_text())
+    assert mexp.evaluate_seed(config, workdir, 0, done["fingerprint"]) == done
+    assert os.stat(seed_dir / "seed.json").st_mtime_ns == mtime
+    with pytest.raises(ValueError, match="another run changed them"):
+        mexp.evaluate_seed(config, workdir, 0, "0123456789abcdef")
 
 
 def _seed_result(posed, outcomes_rp, outcomes_kc, dates):

@@ -298,3 +298,26 @@ def test_a_given_layout_trains_the_rp_and_never_the_outcome_scorers(tmp_path, mo
     with pytest.raises(Reached):
         mc.run(config, tmp_path / "run", progress=False)
     assert trained == ["rp_day"]
+
+
+@pytest.mark.slow
+def test_seeds_in_processes_give_the_outcomes_of_one_process(tiny, tmp_path, capsys):
+    import shutil
+
+    workdir, _ = tiny
+    run = tmp_path / "run"  # the fixture's trained models, none of its seeds
+    shutil.copytree(workdir, run, ignore=shutil.ignore_patterns("seed*", "metrics.json"))
+    config = mc.get_config("tiny")  # the fixture's command line
+    config.input.data_dir = str(workdir.parent / "data" / "tfds")
+    config.map.ratios = tuple(float(r) for r in RATIOS)
+    config.map.ransac_iterations = 1000
+    config.map.seeds = (0, 2)
+    metrics = mc.run(config, run, processes=2)
+    assert "evaluating seeds [0, 2] in 2 processes" in capsys.readouterr().out
+    assert metrics["seeds"] == [0, 2] and metrics["queries"] > 0
+    # Seed 0 in a process of its own: what the fixture's run computed in its one process.
+    in_a_process, alone = (json.loads((d / "seed0" / "seed.json").read_text())
+                           for d in (run, workdir))
+    for d in (in_a_process, alone):
+        d.pop("timings")
+    assert in_a_process == alone
