@@ -11,6 +11,7 @@ night.
 
     python -m experiments.map_summarization.conditions                 # small, seeds 0-4
     python -m experiments.map_summarization.conditions --size tiny --seeds 0
+    python -m experiments.map_summarization.conditions --processes 2   # 2 seeds at once
 
 The synthetic world renders the layout (``rp_jax.sources.synthetic``, preset
 ``robotcar_seasons``; its reference model with points and the queries' poses are in its
