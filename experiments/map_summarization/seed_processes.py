@@ -83,11 +83,13 @@ def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdi
     for s in todo:
         if prepare is not None:
             prepare(s)
+    from rp_jax.progress import bar as tqdm  # the one progress helper
+
     n = min(int(processes), len(todo))
-    if progress:
-        print(f"evaluating seeds {todo} in {n} processes", flush=True)
     context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
-    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool, \
+            tqdm(total=len(todo), desc=f"seeds {todo} in {n} processes",
+                 disable=not progress) as done:
         futures = {pool.submit(_evaluate, driver, config, str(workdir), s, fingerprint): s
                    for s in todo}
         for future in as_completed(futures):
@@ -100,6 +102,5 @@ def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdi
                 e.add_note(f"(world seed {seed}, evaluated in a process of its own)")
                 raise
             log.info("seed %d evaluated in its process", seed)
-            if progress:
-                print(f"seed {seed} done", flush=True)
+            done.update()
     return todo

@@ -52,17 +52,24 @@ def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_s
     """Train in ``rp_dir`` on the records ``columns()`` gives (with counts of its own to
     report), validation viewpoints held out; (predictor, counts). Resumes an interrupted run.
 
-    A finished run of ``cfg`` there whose ``training_counts.json`` was written for the same
-    ``asked`` (what selects the records beyond the config, e.g. excluded slices) is loaded
-    as it is: the training records are not read and nothing is compiled or locked, so a
-    command run again, or several at once, only load the model.
+    A finished run of ``cfg`` there is loaded as it is, with the counts its
+    ``training_counts.json`` kept: the training records are not read and nothing is
+    compiled or locked, so a command run again, or several at once, only load the model.
+
+    Raises:
+      train.WorkdirMismatchError: the folder holds a run of another config, or a finished
+        one whose records were selected otherwise (``asked``: what selects the records
+        beyond the config, e.g. the excluded slices).
     """
     asked = dict(asked or {})
     counts_path = rp_dir / TRAINING_COUNTS
     if train.finished_run(rp_dir, cfg) and counts_path.is_file():
         saved = json.loads(counts_path.read_text())
-        if saved.get("asked") == asked:
-            return predict.load(rp_dir, batch_size=batch_size), saved["counts"]
+        if saved.get("asked") != asked:
+            raise train.WorkdirMismatchError(
+                f"{rp_dir} holds a model trained on the records selected by "
+                f"{saved.get('asked')}, asked {asked}; use another folder or delete it")
+        return predict.load(rp_dir, batch_size=batch_size), saved["counts"]
     cols, more_counts = columns()
     val_mask = records.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
                                            cfg.seed)

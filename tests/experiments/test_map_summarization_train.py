@@ -11,7 +11,7 @@ import pytest
 
 from experiments.map_summarization import train as mtrain
 from rp_jax import schedule as schedule_lib
-from rp_jax import workdir_lock
+from rp_jax import train, workdir_lock
 from rp_jax.datasets import learnable_task
 from tests.test_train import small_config
 from tests.test_workdir_lock import HOLDER
@@ -64,12 +64,12 @@ def test_a_finished_run_is_loaded_without_its_records_or_its_lock(tmp_path):
     times = [dt.datetime(2024, 6, 1, 9), dt.datetime(2024, 6, 1, 13)]
     np.testing.assert_array_equal(again(patches, xy, times), first(patches, xy, times))
 
-    # Records selected otherwise (another excluded slice): the records are read again.
-    other: list = []
-    mtrain._fit(cfg, tmp_path, _columns(other), batch_size=64, progress=False,
-                asked={"excluded_slices": ["slice6"]})
-    assert other == [1]
-    # Another config is refused as before, without reading the records.
-    with pytest.raises(Exception, match="different config"):
+    # Records selected otherwise (another excluded slice), or another config: refused,
+    # without reading the records.
+    with pytest.raises(train.WorkdirMismatchError,
+                       match=r"selected by \{'excluded_slices': \['slice8'\]\}, asked"):
+        mtrain._fit(cfg, tmp_path, no_records, batch_size=64, progress=False,
+                    asked={"excluded_slices": ["slice6"]})
+    with pytest.raises(train.WorkdirMismatchError, match="different config"):
         mtrain._fit(small_config(num_epochs=1, learning_rate=1.0), tmp_path, no_records,
-                    batch_size=64, progress=False, asked={"excluded_slices": ["slice6"]})
+                    batch_size=64, progress=False, asked={"excluded_slices": ["slice8"]})
