@@ -86,25 +86,6 @@ def seed_list(text: str) -> tuple[int, ...]:
     return seeds
 
 
-def _processes(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1")
-    return n
-
-
-def add_processes(parser: argparse.ArgumentParser) -> None:
-    """``--processes N``: world seeds evaluated at once, each in a process of its own
-    (``experiments.map_summarization.seed_processes``)."""
-    parser.add_argument("--processes", type=_processes, default=1, metavar="N",
-                        help="world seeds evaluated at once, each in a process of its own "
-                             "(default 1; the outcomes are the same; each process holds one "
-                             "world's map and queries in memory)")
-
-
 def override_args(rest: list[str], parser: argparse.ArgumentParser) -> list[str]:
     """The ``--config.FIELD[=VALUE]`` arguments of ``rest`` (a value may follow as the next
     argument, as absl allows); anything else is an error naming it."""

@@ -30,7 +30,9 @@ def _add_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                         help="synthetic world seeds the maps are built on (default "
                         "--config.map.seeds, 0,1,2)")
-    cli.add_processes(parser)
+    from experiments.map_summarization.seed_processes import add_processes
+
+    add_processes(parser)
 
 
 def parse(argv: list[str] | None = None):
@@ -64,11 +66,16 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2
+    from experiments.map_summarization.seed_processes import SeedProcessError
+
     try:
         metrics = experiment.run(config, workdir, processes=args.processes)
     except LayoutError as e:  # a --manual-dir that is not the dataset's layout
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2
+    except SeedProcessError as e:
+        print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
+        return 1
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
     print(
         f"{metrics['queries']} queries, seeds {metrics['seeds']}; accuracy (%) within "

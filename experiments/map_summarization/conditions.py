@@ -739,7 +739,7 @@ def main(argv: list[str] | None = None) -> int:
     def add_flags(parser) -> None:
         parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
                             help="synthetic world seeds (default 0,1,2,3,4; tiny: 0)")
-        cli.add_processes(parser)
+        seed_processes.add_processes(parser)
 
     config, workdir, args = cli.parse_flags(argv, NAME, get_config, __doc__,
                                             default_size="small", add_flags=add_flags,
@@ -759,6 +759,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, LayoutError) as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
+    except seed_processes.SeedProcessError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 1
     print(f"wrote {workdir}/metrics.json, report.md and {len(metrics['figures'])} figures")
     p = metrics["primary"]
     if p["available"]:

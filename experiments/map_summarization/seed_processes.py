@@ -19,25 +19,50 @@ check the fingerprint, evaluate the seed.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import json
 import logging
 import multiprocessing
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import ml_collections
 
-from experiments.map_summarization.world import SEED_FILE
-
-__all__ = ["evaluate_in_processes", "missing_seeds"]
+__all__ = ["SeedProcessError", "add_processes", "evaluate_in_processes", "missing_seeds"]
 
 log = logging.getLogger(__name__)
 
 
+class SeedProcessError(RuntimeError):
+    """A seed's process ended without finishing (killed, or out of memory)."""
+
+
+def _processes(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1")
+    return n
+
+
+def add_processes(parser: argparse.ArgumentParser) -> None:
+    """``--processes N`` of the map-summarization commands: world seeds evaluated at once,
+    each in a process of its own (``evaluate_in_processes``)."""
+    parser.add_argument("--processes", type=_processes, default=1, metavar="N",
+                        help="world seeds evaluated at once, each in a process of its own "
+                             "(default 1; the outcomes are the same; each process holds one "
+                             "world's map and queries in memory)")
+
+
 def missing_seeds(workdir: Path, seeds: Sequence[int], fingerprint: str) -> list[int]:
     """The seeds without a ``seed.json`` of ``fingerprint`` in ``workdir/seed<S>``."""
+    from experiments.map_summarization.world import SEED_FILE  # the map stack: when needed
+
     out = []
     for s in seeds:
         path = Path(workdir) / f"seed{s}" / SEED_FILE
@@ -75,6 +100,7 @@ def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdi
     pool would do on one).
 
     Raises:
+      SeedProcessError: a process ended without finishing.
       Whatever a process raised, with a note naming its seed.
     """
     todo = missing_seeds(workdir, seeds, fingerprint)
@@ -96,6 +122,15 @@ def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdi
             seed = futures[future]
             try:
                 future.result()
+            except BrokenProcessPool as e:  # every unfinished seed's future says so
+                for f in futures:
+                    f.cancel()
+                left = missing_seeds(workdir, todo, fingerprint)
+                raise SeedProcessError(
+                    "a process evaluating the world seeds ended before it finished (killed, "
+                    "or out of memory: each process holds one world; try fewer --processes "
+                    f"than {n}); seeds {left} are not done, the others are kept in "
+                    f"{workdir} and a run started again goes on from them") from e
             except Exception as e:
                 for f in futures:
                     f.cancel()

@@ -3,10 +3,10 @@ end to end in tests/experiments/test_map_summarization_conditions.py."""
 
 import argparse
 import json
+import os
 
 import pytest
 
-from experiments import cli
 from experiments.map_summarization import seed_processes
 
 
@@ -32,9 +32,30 @@ def test_one_process_or_one_missing_seed_is_left_to_the_caller(tmp_path):
 
 def test_processes_flag():
     parser = argparse.ArgumentParser(prog="p")
-    cli.add_processes(parser)
+    seed_processes.add_processes(parser)
     assert parser.parse_args([]).processes == 1
     assert parser.parse_args(["--processes", "3"]).processes == 3
     for bad in ("0", "two"):
         with pytest.raises(SystemExit):
             parser.parse_args(["--processes", bad])
+
+
+def test_each_missing_seed_is_written_by_a_process_of_its_own(tmp_path):
+    prepared = []
+    done = seed_processes.evaluate_in_processes(
+        "tests.experiments._seed_driver", None, tmp_path, [0, 1, 2], "abc", 2,
+        prepare=prepared.append, progress=False)
+    assert sorted(done) == prepared == [0, 1, 2]
+    pids = {json.loads((tmp_path / f"seed{s}" / "seed.json").read_text())["pid"]
+            for s in done}
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+    assert seed_processes.missing_seeds(tmp_path, [0, 1, 2], "abc") == []
+
+
+def test_a_killed_process_is_named_and_the_finished_seeds_are_kept(tmp_path):
+    with pytest.raises(seed_processes.SeedProcessError,
+                       match=r"ended before it finished .* try fewer --processes than 2\); "
+                             r"seeds \[13(, 4)?\] are not done, the others are kept in "):
+        seed_processes.evaluate_in_processes(
+            "tests.experiments._seed_driver", None, tmp_path, [13, 4], "abc", 2,
+            progress=False)
