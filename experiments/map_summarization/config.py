@@ -197,6 +197,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
                     "--config.map.robotcar_dir and --config.map.root)")
     if real or m.root:
         root = Path(m.root or Path(config.input.manual_dir) / "cmu_seasons")
+        expect(root.is_dir(), "root", f"an Extended CMU Seasons layout; {root} is no folder")
         expect(isinstance(m.slice, int) and (root / f"slice{m.slice}").is_dir(), "slice",
                f"a slice of {root}; it has "
                f"{sorted(p.name for p in root.glob('slice*') if p.is_dir()) or 'none'}")

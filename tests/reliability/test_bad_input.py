@@ -449,6 +449,10 @@ def _cases() -> list[Case]:
         Case("map summarization on a map root without the slice",
              _experiment("map_summarization", "--config.map.root={tmp}"), 2,
              (r"config\.map\.slice=8: expected a slice of .*; it has none",)),
+        Case("map summarization on a map root that does not exist",
+             _experiment("map_summarization", "--config.map.root={tmp}/nowhere"), 2,
+             (r"config\.map\.root='.*/nowhere': expected an Extended CMU Seasons layout; "
+              r".*/nowhere is no folder",)),
         Case("map summarization pruning 150 %",
              _experiment("map_summarization", "--config.map.ratios=(1.5,)"), 2,
              (r"config\.map\.ratios=\(1\.5,\)", r"\(0, 1\)")),
