@@ -46,6 +46,8 @@ def _parse(argv):
                                             default_size=DEFAULT_SIZE, add_flags=_add_flags)
     if args.seeds is not None:
         config.map.seeds = args.seeds
+    if args.processes is not None:
+        config.map.processes = args.processes
     return config, workdir, args
 
 
@@ -69,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     from experiments.map_summarization.seed_processes import SeedProcessError
 
     try:
-        metrics = experiment.run(config, workdir, processes=args.processes)
+        metrics = experiment.run(config, workdir)
     except LayoutError as e:  # a --manual-dir that is not the dataset's layout
         print(f"python -m experiments.{NAME}: error: {e}", file=sys.stderr)
         return 2

@@ -159,6 +159,8 @@ def validate(config: ml_collections.ConfigDict) -> None:
            "one or more pruned fractions in (0, 1), e.g. (0.5, 0.9)")
     expect(isinstance(m.outcome_batch_size, int) and m.outcome_batch_size > 0,
            "outcome_batch_size", "a positive integer (training pairs per step)")
+    expect(isinstance(m.processes, int) and m.processes >= 1, "processes",
+           "a whole number >= 1 (world seeds and label worlds at once)")
     if not m.root:
         layout_outcomes.label_seeds(config)  # disjoint from the evaluated seeds
 
@@ -365,6 +367,7 @@ def _fingerprint(config, scorers=None, rp=None) -> str:
 
     settings = config.map.to_dict()
     settings.pop("seeds", None)
+    settings.pop("processes", None)  # how many at once, never what
     settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(rows_of(config)),
                     result_version=RESULT_VERSION,
                     world=presets.world_version("robotcar_seasons"))
@@ -441,11 +444,11 @@ def evaluate_seed(config: ml_collections.ConfigDict, workdir: Path, seed: int,
 
 
 def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
-        progress: bool = True, processes: int = 1) -> dict:
+        progress: bool = True) -> dict:
     """Every world seed, every row, pooled and by condition; writes ``metrics.json``,
-    ``report.md`` and one accuracy-vs-pruning figure per condition group. ``processes``:
-    world seeds evaluated at once, each in a process of its own (``seed_processes``; the
-    outcomes are the same)."""
+    ``report.md`` and one accuracy-vs-pruning figure per condition group.
+    ``config.map.processes``: label worlds and world seeds evaluated at once, each in a
+    process of its own (``seed_processes``; the outcomes are the same)."""
     from rp_jax import plots
 
     validate(config)
@@ -461,7 +464,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     timings = dict(models.timings)
     rp, rp_counts, scorers = models.rp, models.rp_counts, models.scorers
     seed_processes.evaluate_in_processes(
-        __name__, config, workdir, seeds, models.fingerprint, processes,
+        __name__, config, workdir, seeds, models.fingerprint, int(m.processes),
         prepare=lambda s: ensure_layout(config, s, progress=progress), progress=progress)
     per_seed = []
     for seed in seeds:
@@ -746,6 +749,8 @@ def main(argv: list[str] | None = None) -> int:
                                             module="map_summarization.conditions")
     if args.seeds is not None:
         config.map.seeds = args.seeds
+    if args.processes is not None:
+        config.map.processes = args.processes
     from rp_jax import platform
     from rp_jax import progress as progress_lib
 
@@ -755,7 +760,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = "python -m experiments.map_summarization.conditions"
     try:
         validate(config)
-        metrics = run(config, workdir, processes=args.processes)
+        metrics = run(config, workdir)
     except (ValueError, LayoutError) as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2

@@ -99,6 +99,9 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.min_inliers = {"tiny": 8, "small": 12, "full": 12}[size]
     m.ransac_iterations = 5000
     m.workers = 0  # rendering processes; 0 = one per core
+    # World seeds, label worlds and label slices evaluated at once, each in a process of its
+    # own (--processes; seed_processes.py). Never changes an outcome: no fingerprint has it.
+    m.processes = 1
     return config
 
 
@@ -169,7 +172,7 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
     for field in ("time_bucket_minutes", "max_keypoints", "vlad_words", "num_retrieved",
                   "ransac_iterations", "cmu_rp_epochs", "conditional_epochs",
                   "conditional_hidden", "conditional_harmonics", "outcome_hidden",
-                  "outcome_depth", "outcome_epochs", "outcome_members"):
+                  "outcome_depth", "outcome_epochs", "outcome_members", "processes"):
         number(field, 1, integer=True)
     number("min_inliers", 4, integer=True)  # a PnP pose needs four points
     for field in ("workers", "kcover_K", "random_seed"):

@@ -74,6 +74,7 @@ def _fingerprint(config, params) -> str:
     version of the rows' rules and the predictors' weights."""
     settings = config.to_dict()
     settings["map"].pop("seeds", None)
+    settings["map"].pop("processes", None)  # how many at once, never what
     settings["result_version"] = RESULT_VERSION
     h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
     for leaf in jax.tree_util.tree_leaves(params):
@@ -122,12 +123,11 @@ def evaluate_seed(config: ml_collections.ConfigDict, workdir: Path, seed: int,
 
 
 def run(
-    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True,
-    processes: int = 1,
+    config: ml_collections.ConfigDict, workdir: str | os.PathLike, *, progress: bool = True
 ) -> dict:
     """Run the map-summarization experiment end to end; returns what ``metrics.json`` holds.
-    ``processes``: world seeds evaluated at once, each in a process of its own
-    (``seed_processes``; the outcomes are the same)."""
+    ``config.map.processes``: label slices and world seeds evaluated at once, each in a
+    process of its own (``seed_processes``; the outcomes are the same)."""
     from experiments.map_summarization.config import validate
 
     validate(config, workdir)  # before the predictor is trained: a bad field fails at once
@@ -140,7 +140,7 @@ def run(
     predictor, rp_counts = predictors["robotcar"], training["robotcar"]
     seeds = [0] if config.input.data_config == "real" or m.root else [int(s) for s in m.seeds]
     seed_processes.evaluate_in_processes(
-        __name__, config, workdir, seeds, fingerprint, processes,
+        __name__, config, workdir, seeds, fingerprint, int(m.processes),
         prepare=lambda s: CMU_SEASONS.ensure(config, s, progress=progress), progress=progress)
     per_seed = []
     for seed in seeds:

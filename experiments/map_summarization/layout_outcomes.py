@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.map_summarization import outcome_scorer
+from experiments.map_summarization import outcome_scorer, seed_processes
 from experiments.map_summarization.world import Layout, localization_kwargs
 from rp_jax.mapsum.localization_outcomes import OutcomeLabels, labels_of_queries
 
-__all__ = ["label_seeds", "train_layout_scorers", "world_outcomes"]
+__all__ = ["label_seeds", "label_world", "train_layout_scorers", "world_outcomes"]
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +73,29 @@ def _fingerprint(config, layout: Layout) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def _labels_path(out_dir: Path, layout: Layout, seed: int) -> Path:
+    return Path(out_dir) / f"{layout.name}_seed{seed}.npz"
+
+
+def _cached(path: Path, fingerprint: str) -> tuple[OutcomeLabels, np.ndarray, np.ndarray] | None:
+    """A label world's cached (labels, point table, query table) of ``fingerprint``, or None."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["fingerprint"]) == fingerprint:
+                return OutcomeLabels.load(path), z["point_table"], z["query_table"]
+    except (OSError, KeyError, ValueError):
+        log.warning("%s is unreadable; labelling again", path)
+    return None
+
+
+def label_world(config, layout: Layout, seed: int, out_dir: Path,
+                place: tuple[float, float] | None) -> None:
+    """``world_outcomes`` in a process of its own (``seed_processes``)."""
+    world_outcomes(config, layout, seed, out_dir, place=place, progress=False)
+
+
 def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
                    place: tuple[float, float] | None,
                    progress: bool = True) -> tuple[OutcomeLabels, np.ndarray, np.ndarray]:
@@ -83,16 +106,12 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
     """
     from rp_jax.localize import LocalizationMap, localize
 
-    path = Path(out_dir) / f"{layout.name}_seed{seed}.npz"
+    path = _labels_path(out_dir, layout, seed)
     fingerprint = _fingerprint(config, layout)
-    if path.is_file():
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                if str(z["fingerprint"]) == fingerprint:
-                    log.info("reusing %s", path)
-                    return OutcomeLabels.load(path), z["point_table"], z["query_table"]
-        except (OSError, KeyError, ValueError):
-            log.warning("%s is unreadable; labelling again", path)
+    cached = _cached(path, fingerprint)
+    if cached is not None:
+        log.info("reusing %s", path)
+        return cached
     root = layout.ensure(config, seed, progress=progress)
     world = layout.build_map(config, root, {}, seed, progress=progress)
     queries = [q for q in layout.queries(config, world, progress=progress)
@@ -128,8 +147,19 @@ def train_layout_scorers(config, layout: Layout, workdir: Path, *,
     ``outcome_scorer.OutcomeScorers`` whose query times are read at ``place``."""
     seeds = label_seeds(config) if seeds is None else list(seeds)
     workdir = Path(workdir)
-    parts = [world_outcomes(config, layout, s, workdir / outcome_scorer.LABEL_DIR,
-                            place=place, progress=progress) for s in seeds]
+    out_dir = workdir / outcome_scorer.LABEL_DIR
+    fingerprint = _fingerprint(config, layout)
+    todo = [s for s in seeds if _cached(_labels_path(out_dir, layout, s), fingerprint) is None]
+    processes = int(config.map.get("processes", 1))
+    if processes > 1 and len(todo) > 1:  # the worlds rendered here first, on every core
+        for s in todo:
+            layout.ensure(config, s, progress=progress)
+        seed_processes.run_in_processes(
+            f"{__name__}:label_world", [(config, layout, s, out_dir, place) for s in todo],
+            [f"label world {s}" for s in todo], processes, workdir=workdir,
+            progress=progress)
+    parts = [world_outcomes(config, layout, s, out_dir, place=place, progress=progress)
+             for s in seeds]
     settings = outcome_scorer.settings_of(config)
     return outcome_scorer.fit_scorers(
         settings, outcome_scorer.stack_groups(parts),

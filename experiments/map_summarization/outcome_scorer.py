@@ -475,8 +475,45 @@ class OutcomeScorers:
                         for p in self.params[kind]], axis=0)
 
 
+def _slice_labelled(path: Path, fingerprint: str) -> bool:
+    """Whether ``slice_outcomes`` would read ``path`` as it is (same labels and features)."""
+    from rp_jax.mapsum.outcome_scorer import FEATURE_VERSION
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return (str(z["fingerprint"]) == fingerprint
+                    and int(z["feature_version"]) == FEATURE_VERSION
+                    if "feature_version" in z.files else False)
+    except (OSError, KeyError, ValueError):
+        return False
+
+
+def label_slice(config, workdir: Path, seed: int, slice_id: int) -> None:
+    """``slice_outcomes`` in a process of its own (``seed_processes``), with the run's
+    RobotCar RP loaded from ``workdir/rp``."""
+    from rp_jax import predict
+
+    predictor = predict.load(Path(workdir) / "rp", batch_size=int(config.eval.batch_size))
+    slice_outcomes(config, seed, slice_id, predictor, Path(workdir) / LABEL_DIR,
+                   progress=False)
+
+
 def _training_data(config, workdir: Path, predictor, settings: ScorerSettings,
                    progress: bool) -> tuple[LabelStack, list[str]]:
+    from experiments.map_summarization import seed_processes
+
+    units = [(seed, s) for seed in settings.seeds for s in training_slices(config, seed)]
+    fingerprint = _label_fingerprint(config, predictor)
+    todo = [(seed, s) for seed, s in units if not _slice_labelled(
+        workdir / LABEL_DIR / f"seed{seed}_slice{s}.npz", fingerprint)]
+    processes = int(config.map.get("processes", 1))
+    if processes > 1 and len(todo) > 1:  # the slices rendered here first, on every core
+        for seed, s in todo:
+            _slice_root(config, seed, s, progress)
+        seed_processes.run_in_processes(
+            f"{__name__}:label_slice", [(config, workdir, seed, s) for seed, s in todo],
+            [f"label slice {s} of world {seed}" for seed, s in todo], processes,
+            workdir=workdir, progress=progress)
     parts, groups = [], []
     for seed in settings.seeds:
         for s in training_slices(config, seed):

@@ -31,7 +31,8 @@ from pathlib import Path
 
 import ml_collections
 
-__all__ = ["SeedProcessError", "add_processes", "evaluate_in_processes", "missing_seeds"]
+__all__ = ["SeedProcessError", "add_processes", "evaluate_in_processes", "missing_seeds",
+           "run_in_processes"]
 
 log = logging.getLogger(__name__)
 
@@ -51,12 +52,12 @@ def _processes(text: str) -> int:
 
 
 def add_processes(parser: argparse.ArgumentParser) -> None:
-    """``--processes N`` of the map-summarization commands: world seeds evaluated at once,
-    each in a process of its own (``evaluate_in_processes``)."""
-    parser.add_argument("--processes", type=_processes, default=1, metavar="N",
-                        help="world seeds evaluated at once, each in a process of its own "
-                             "(default 1; the outcomes are the same; each process holds one "
-                             "world's map and queries in memory)")
+    """``--processes N`` of the map-summarization commands (``config.map.processes``): world
+    seeds and label worlds evaluated at once, each in a process of its own."""
+    parser.add_argument("--processes", type=_processes, default=None, metavar="N",
+                        help="world seeds and label worlds evaluated at once, each in a "
+                             "process of its own (config.map.processes, default 1; the "
+                             "outcomes are the same; each process holds one world in memory)")
 
 
 def missing_seeds(workdir: Path, seeds: Sequence[int], fingerprint: str) -> list[int]:
@@ -75,16 +76,56 @@ def missing_seeds(workdir: Path, seeds: Sequence[int], fingerprint: str) -> list
     return out
 
 
-def _evaluate(driver: str, config: ml_collections.ConfigDict, workdir: str, seed: int,
-              fingerprint: str) -> int:
-    """In a spawned process: the driver's ``evaluate_seed``."""
+def _call(function: str, args: tuple) -> None:
+    """In a spawned process: ``module:function(*args)``, with the commands' CPU set-up."""
     from rp_jax import platform
     from rp_jax import progress as progress_lib
 
     platform.configure_cpu()
     progress_lib.set_quiet()
-    importlib.import_module(driver).evaluate_seed(config, Path(workdir), seed, fingerprint)
-    return seed
+    module, name = function.split(":")
+    getattr(importlib.import_module(module), name)(*args)
+
+
+def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
+                     processes: int, *, workdir: Path, progress: bool = True) -> None:
+    """``module:function(*job)`` for every job, ``processes`` at a time, each in a spawned
+    process of its own (``names``: what each job is, for the progress line and errors).
+
+    Raises:
+      SeedProcessError: a process ended without finishing.
+      Whatever a job raised, with a note naming it.
+    """
+    from rp_jax.progress import bar as tqdm  # the one progress helper
+
+    n = min(int(processes), len(jobs))
+    context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
+    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool, \
+            tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
+                 disable=not progress) as done:
+        futures = {pool.submit(_call, function, tuple(job)): name
+                   for job, name in zip(jobs, names)}
+        for future in as_completed(futures):
+            name = futures[future]
+            try:
+                future.result()
+            except BrokenProcessPool as e:  # every unfinished job's future says so
+                for f in futures:
+                    f.cancel()
+                left = [futures[f] for f in futures
+                        if not (f.done() and not f.cancelled() and f.exception() is None)]
+                raise SeedProcessError(
+                    "a process ended before it finished (killed, or out of memory: each "
+                    "process holds one world; try fewer --processes than "
+                    f"{n}); not done: {', '.join(left)}; what finished is kept in "
+                    f"{workdir} and a run started again goes on from it") from e
+            except Exception as e:
+                for f in futures:
+                    f.cancel()
+                e.add_note(f"({name}, in a process of its own)")
+                raise
+            log.info("%s done in its process", name)
+            done.update()
 
 
 def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdir: Path,
@@ -109,33 +150,8 @@ def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdi
     for s in todo:
         if prepare is not None:
             prepare(s)
-    from rp_jax.progress import bar as tqdm  # the one progress helper
-
-    n = min(int(processes), len(todo))
-    context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
-    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool, \
-            tqdm(total=len(todo), desc=f"seeds {todo} in {n} processes",
-                 disable=not progress) as done:
-        futures = {pool.submit(_evaluate, driver, config, str(workdir), s, fingerprint): s
-                   for s in todo}
-        for future in as_completed(futures):
-            seed = futures[future]
-            try:
-                future.result()
-            except BrokenProcessPool as e:  # every unfinished seed's future says so
-                for f in futures:
-                    f.cancel()
-                left = missing_seeds(workdir, todo, fingerprint)
-                raise SeedProcessError(
-                    "a process evaluating the world seeds ended before it finished (killed, "
-                    "or out of memory: each process holds one world; try fewer --processes "
-                    f"than {n}); seeds {left} are not done, the others are kept in "
-                    f"{workdir} and a run started again goes on from them") from e
-            except Exception as e:
-                for f in futures:
-                    f.cancel()
-                e.add_note(f"(world seed {seed}, evaluated in a process of its own)")
-                raise
-            log.info("seed %d evaluated in its process", seed)
-            done.update()
+    run_in_processes(f"{driver}:evaluate_seed",
+                     [(config, Path(workdir), s, fingerprint) for s in todo],
+                     [f"world seed {s}" for s in todo], processes, workdir=Path(workdir),
+                     progress=progress)
     return todo

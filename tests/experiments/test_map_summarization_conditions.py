@@ -317,8 +317,9 @@ def test_seeds_in_processes_give_the_outcomes_of_one_process(tiny, tmp_path, cap
     config.map.ratios = tuple(float(r) for r in RATIOS)
     config.map.ransac_iterations = 1000
     config.map.seeds = (0, 2)
-    metrics = mc.run(config, run, processes=2)
-    assert "seeds [0, 2] in 2 processes" in capsys.readouterr().err  # its progress line
+    config.map.processes = 2
+    metrics = mc.run(config, run)
+    assert "world seed 0, world seed 2 in 2 processes" in capsys.readouterr().err  # progress
     assert metrics["seeds"] == [0, 2] and metrics["queries"] > 0
     # Seed 0 in a process of its own: what the fixture's run computed in its one process.
     in_a_process, alone = (json.loads((d / "seed0" / "seed.json").read_text())
@@ -326,3 +327,25 @@ def test_seeds_in_processes_give_the_outcomes_of_one_process(tiny, tmp_path, cap
     for d in (in_a_process, alone):
         d.pop("timings")
     assert in_a_process == alone
+
+
+@pytest.mark.slow
+def test_a_label_world_in_a_process_of_its_own_gives_the_same_labels(tiny, tmp_path):
+    import numpy as np
+
+    from experiments.map_summarization import layout_outcomes, outcome_scorer
+    from experiments.map_summarization.seed_processes import run_in_processes
+
+    workdir, _ = tiny
+    config = mc.get_config("tiny")  # the fixture's command line
+    config.input.data_dir = str(workdir.parent / "data" / "tfds")
+    config.map.ransac_iterations = 1000
+    name = f"{mc.ROBOTCAR_SEASONS.name}_seed1.npz"  # the fixture's label world, in-process
+    run_in_processes(f"{layout_outcomes.__name__}:label_world",
+                     [(config, mc.ROBOTCAR_SEASONS, 1, tmp_path, mc.ROBOTCAR_LOCATION)],
+                     ["label world 1"], 2, workdir=tmp_path, progress=False)
+    with np.load(tmp_path / name) as ours, \
+            np.load(workdir / outcome_scorer.LABEL_DIR / name) as theirs:
+        assert sorted(ours.files) == sorted(theirs.files)
+        for k in ours.files:
+            np.testing.assert_array_equal(ours[k], theirs[k], err_msg=k)

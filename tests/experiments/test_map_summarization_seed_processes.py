@@ -33,7 +33,7 @@ def test_one_process_or_one_missing_seed_is_left_to_the_caller(tmp_path):
 def test_processes_flag():
     parser = argparse.ArgumentParser(prog="p")
     seed_processes.add_processes(parser)
-    assert parser.parse_args([]).processes == 1
+    assert parser.parse_args([]).processes is None  # config.map.processes decides
     assert parser.parse_args(["--processes", "3"]).processes == 3
     for bad in ("0", "two"):
         with pytest.raises(SystemExit):
@@ -55,7 +55,21 @@ def test_each_missing_seed_is_written_by_a_process_of_its_own(tmp_path):
 def test_a_killed_process_is_named_and_the_finished_seeds_are_kept(tmp_path):
     with pytest.raises(seed_processes.SeedProcessError,
                        match=r"ended before it finished .* try fewer --processes than 2\); "
-                             r"seeds \[13(, 4)?\] are not done, the others are kept in "):
+                             r"not done: world seed 13(, world seed 4)?; what finished is kept"):
         seed_processes.evaluate_in_processes(
             "tests.experiments._seed_driver", None, tmp_path, [13, 4], "abc", 2,
             progress=False)
+
+
+def test_how_many_processes_is_in_no_fingerprint():
+    from experiments.map_summarization import conditions as mc
+    from experiments.map_summarization import experiment as mexp
+    from experiments.map_summarization.config import get_config
+
+    for make, fingerprint in ((mc.get_config, mc._fingerprint),
+                              (get_config, lambda c: mexp._fingerprint(c, {}))):
+        one, three = make("tiny"), make("tiny")
+        three.map.processes = 3
+        assert fingerprint(one) == fingerprint(three)
+        three.map.ransac_iterations = 7  # a setting of the outcomes is in it
+        assert fingerprint(one) != fingerprint(three)
