@@ -1,4 +1,5 @@
-"""World seeds evaluated in several processes at once (a run's ``--processes``).
+"""World seeds, label worlds and label slices made in several processes at once (a run's
+``--processes``, ``config.map.processes``).
 
 A map-summarization run evaluates each world seed on its own (``world.evaluate_world``:
 the map, the queries and every row's summaries at every ratio) and writes the seed's
@@ -10,7 +11,9 @@ cores ``evaluate_in_processes`` evaluates the seeds a run lacks in that many spa
 processes, each of which writes its ``seed.json``; the run then reads them as it reads a
 finished seed, in seed order. The outcomes are those of one process: each process loads
 the run's trained models from the workdir (trained there before, by the run) and refuses
-to evaluate if its fingerprint differs from the run's.
+to evaluate if its fingerprint differs from the run's. The outcome scorer's label slices
+and label worlds, cached the same way, are made with ``run_in_processes`` before the
+scorers train (``outcome_scorer.label_slice``, ``layout_outcomes.label_world``).
 
 A driver module (``experiments.map_summarization.conditions``, ...) provides
 ``evaluate_seed(config, workdir, seed, fingerprint)``: load its models from ``workdir``,
@@ -38,7 +41,7 @@ log = logging.getLogger(__name__)
 
 
 class SeedProcessError(RuntimeError):
-    """A seed's process ended without finishing (killed, or out of memory)."""
+    """A process ended without finishing its job (killed, or out of memory)."""
 
 
 def _processes(text: str) -> int:
