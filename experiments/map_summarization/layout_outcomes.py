@@ -77,6 +77,15 @@ def _labels_path(out_dir: Path, layout: Layout, seed: int) -> Path:
     return Path(out_dir) / f"{layout.name}_seed{seed}.npz"
 
 
+def _labelled(path: Path, fingerprint: str) -> bool:
+    """Whether ``path`` holds a label world's labels of ``fingerprint`` (its key only read)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return str(z["fingerprint"]) == fingerprint
+    except (OSError, KeyError, ValueError):
+        return False
+
+
 def _cached(path: Path, fingerprint: str) -> tuple[OutcomeLabels, np.ndarray, np.ndarray] | None:
     """A label world's cached (labels, point table, query table) of ``fingerprint``, or None."""
     if not path.is_file():
@@ -148,10 +157,13 @@ def train_layout_scorers(config, layout: Layout, workdir: Path, *,
     seeds = label_seeds(config) if seeds is None else list(seeds)
     workdir = Path(workdir)
     out_dir = workdir / outcome_scorer.LABEL_DIR
-    fingerprint = _fingerprint(config, layout)
-    todo = [s for s in seeds if _cached(_labels_path(out_dir, layout, s), fingerprint) is None]
     processes = int(config.map.get("processes", 1))
-    if processes > 1 and len(todo) > 1:  # the worlds rendered here first, on every core
+    todo = []
+    if processes > 1:
+        fingerprint = _fingerprint(config, layout)
+        todo = [s for s in seeds
+                if not _labelled(_labels_path(out_dir, layout, s), fingerprint)]
+    if len(todo) > 1:  # the worlds rendered here first, on every core
         for s in todo:
             layout.ensure(config, s, progress=progress)
         seed_processes.run_in_processes(

@@ -502,12 +502,14 @@ def _training_data(config, workdir: Path, predictor, settings: ScorerSettings,
                    progress: bool) -> tuple[LabelStack, list[str]]:
     from experiments.map_summarization import seed_processes
 
-    units = [(seed, s) for seed in settings.seeds for s in training_slices(config, seed)]
-    fingerprint = _label_fingerprint(config, predictor)
-    todo = [(seed, s) for seed, s in units if not _slice_labelled(
-        workdir / LABEL_DIR / f"seed{seed}_slice{s}.npz", fingerprint)]
     processes = int(config.map.get("processes", 1))
-    if processes > 1 and len(todo) > 1:  # the slices rendered here first, on every core
+    todo = []
+    if processes > 1:
+        fingerprint = _label_fingerprint(config, predictor)
+        todo = [(seed, s) for seed in settings.seeds for s in training_slices(config, seed)
+                if not _slice_labelled(workdir / LABEL_DIR / f"seed{seed}_slice{s}.npz",
+                                       fingerprint)]
+    if len(todo) > 1:  # the slices rendered here first, on every core
         for seed, s in todo:
             _slice_root(config, seed, s, progress)
         seed_processes.run_in_processes(

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import logging
 import multiprocessing
 from collections.abc import Callable, Sequence
@@ -65,14 +64,13 @@ def add_processes(parser: argparse.ArgumentParser) -> None:
 
 def missing_seeds(workdir: Path, seeds: Sequence[int], fingerprint: str) -> list[int]:
     """The seeds without a ``seed.json`` of ``fingerprint`` in ``workdir/seed<S>``."""
-    from experiments.map_summarization.world import SEED_FILE  # the map stack: when needed
+    from experiments.map_summarization.world import finished_seed  # the map stack: when needed
 
     out = []
     for s in seeds:
-        path = Path(workdir) / f"seed{s}" / SEED_FILE
         try:
-            done = json.loads(path.read_text()).get("fingerprint") == fingerprint
-        except (OSError, ValueError):
+            done = finished_seed(Path(workdir) / f"seed{s}", fingerprint) is not None
+        except (OSError, ValueError):  # a file cut short: evaluated again
             done = False
         if not done:
             out.append(int(s))

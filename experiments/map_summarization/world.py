@@ -60,6 +60,7 @@ __all__ = [
     "CMU_SEASONS",
     "RESULT_VERSION",
     "SEED_FILE",
+    "finished_seed",
     "SELECTING_GRID",
     "WorldMap",
     "build_map",
@@ -465,6 +466,16 @@ class Layout:
 CMU_SEASONS = Layout("cmu_seasons", ensure_layout, build_map, world_queries)
 
 
+def finished_seed(out_dir: Path, fingerprint: str) -> dict | None:
+    """The seed's ``seed.json`` in ``out_dir`` if it was written under ``fingerprint``."""
+    done = Path(out_dir) / SEED_FILE
+    if done.is_file():
+        prev = json.loads(done.read_text())
+        if prev.get("fingerprint") == fingerprint:
+            return prev
+    return None
+
+
 def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir: Path, *,
                    fingerprint: str, progress: bool = True, layout: Layout = CMU_SEASONS,
                    row_names: Sequence[str] | None = None) -> dict:
@@ -480,12 +491,10 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
     """
     from experiments import run_files
 
-    done = out_dir / SEED_FILE
-    if done.is_file():
-        prev = json.loads(done.read_text())
-        if prev.get("fingerprint") == fingerprint:
-            log.info("seed %d: reusing %s", seed, done)
-            return prev
+    prev = finished_seed(out_dir, fingerprint)
+    if prev is not None:
+        log.info("seed %d: reusing %s", seed, out_dir / SEED_FILE)
+        return prev
     out_dir.mkdir(parents=True, exist_ok=True)
     names = list(row_names) if row_names is not None else methods.methods_of(config)
     rows = [methods.row_of(k, config) for k in names]
@@ -569,5 +578,5 @@ def evaluate_world(config, seed: int, predictors: Mapping[str, object], out_dir:
         },
         "timings": {k: round(v, 2) for k, v in timings.items()},
     }
-    run_files.write_json(done, result)
+    run_files.write_json(out_dir / SEED_FILE, result)
     return result
