@@ -72,6 +72,7 @@ MAPSUM_SCORER_VALIDATION = RESULTS / "map_summarization_scorer_validation"
 MAPSUM_SPREAD = RESULTS / "map_summarization_spread"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
+SUITE_TIMES = RESULTS / "suite_times.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
 
@@ -579,6 +580,30 @@ def _sec4a_categories(dataset: str) -> Callable[[Path], str]:
     return lambda root: sec4a_category_table(sec4a_runs(root, dataset))
 
 
+# ----------------------------------------------------------------------------- test suite
+
+def suite_times_table(data: Mapping | None) -> str:
+    """The suite's times before and now (cold, warm) and what a cold run spends making JAX
+    programs (``experiments/results/suite_times.json``)."""
+    if not data:
+        return "_No suite timing is committed under `experiments/results/`._\n"
+    runs = data["runs"]
+    lines = ["| suite | tests | pytest wall | `make test` wall | user CPU |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | {r['make_test_s']:.0f} s "
+              f"| {r['user_s']:.0f} s |" for r in runs]
+    before = runs[0]["pytest_s"]
+    shares = ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %" for r in runs[1:])
+    prof = data["profile"]
+    jax = prof["jax_s"]
+    lines += ["", f"Pytest wall against the suite before: {shares}. A cold run's workers "
+              f"spent {sum(jax.values()):.0f} s of their {prof['user_s']:.0f} s of CPU making "
+              f"JAX programs (tracing {jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, "
+              f"XLA's compile {jax['compile']:.0f} s; the timing plugin below).", "",
+              f"Measured on {data['date']}; {data['machine']}; {data['what']}."]
+    return "\n".join(lines) + "\n"
+
+
 BLOCKS: dict[str, Callable[[Path], str]] = {
     "sec4a_headline": lambda root: sec4a_headline(
         {d: sec4a_runs(root, d) for d in ("webcam_clipart", "cmu_seasons")}),
@@ -609,6 +634,7 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
     "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),
+    "suite_times": lambda root: suite_times_table(read_json(root / SUITE_TIMES)),
 }
 
 

@@ -324,6 +324,20 @@ def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
     assert "No `label_scale` result" in docs_tables.label_scale_table({})
 
 
+def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
+    runs = [{"suite": s, "code": "abc", "tests": "9 passed", "pytest_s": p, "make_test_s": p + 4,
+             "user_s": 2 * p} for s, p in (("before", 400.0), ("now", 300.0))]
+    text = docs_tables.suite_times_table({
+        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+        "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}}})
+    assert "| now | 9 passed | 300 s | 304 s | 600 s |" in text
+    assert "Pytest wall against the suite before: now 75 %." in text
+    assert "spent 100 s of their 500 s of CPU making JAX programs" in text
+    assert "Measured on 2030-01-01; AMD EPYC; fresh clones." in text
+    assert "No suite timing" in docs_tables.suite_times_table(None)
+
+
 def test_by_source_table_averages_each_group_without_the_own_hour():
     T = 24
     gt = [[0.0] * T for _ in range(T)]
