@@ -101,33 +101,51 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
 
     n = min(int(processes), len(jobs))
     context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
-    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool, \
-            tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
-                 disable=not progress) as done:
-        futures = {pool.submit(_call, function, tuple(job)): name
-                   for job, name in zip(jobs, names)}
-        for future in as_completed(futures):
-            name = futures[future]
-            try:
-                future.result()
-            except BrokenProcessPool as e:  # every unfinished job's future says so
-                for f in futures:
-                    f.cancel()
-                left = [futures[f] for f in futures
-                        if not (f.done() and not f.cancelled() and f.exception() is None)]
-                raise SeedProcessError(
-                    "a process ended before it finished (killed, or out of memory: each "
-                    "process holds one world; try fewer --processes than "
-                    f"{n}); not done: {', '.join(left)}; what finished is kept in "
-                    f"{workdir} and a run started again goes on from it") from e
-            except Exception as e:
-                for f in futures:
-                    f.cancel()
-                e.add_note(f"({name}, in a process of its own)")
-                raise
-            log.info("%s done in its process", name)
-            done.update()
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=context)
+    try:
+        with tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
+                  disable=not progress) as done:
+            futures = {pool.submit(_call, function, tuple(job)): name
+                       for job, name in zip(jobs, names)}
+            for future in as_completed(futures):
+                name = futures[future]
+                try:
+                    future.result()
+                except BrokenProcessPool as e:  # every unfinished job's future says so
+                    for f in futures:
+                        f.cancel()
+                    left = [futures[f] for f in futures
+                            if not (f.done() and not f.cancelled() and f.exception() is None)]
+                    raise SeedProcessError(
+                        "a process ended before it finished (killed, or out of memory: each "
+                        "process holds one world; try fewer --processes than "
+                        f"{n}); not done: {', '.join(left)}; what finished is kept in "
+                        f"{workdir} and a run started again goes on from it") from e
+                except Exception as e:
+                    for f in futures:
+                        f.cancel()
+                    e.add_note(f"({name}, in a process of its own)")
+                    raise
+                log.info("%s done in its process", name)
+                done.update()
+    except (KeyboardInterrupt, SystemExit):
+        # Ctrl-C: the processes' jobs are not waited for (a world seed takes up to half an
+        # hour); what finished is on disk and a run started again goes on from it.
+        log.warning("interrupted: stopping %d processes; what finished is kept in %s", n,
+                    workdir)
+        _terminate(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Ends the pool's processes now, whatever job they are in."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.join(timeout=10)
 
 def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdir: Path,
                           seeds: Sequence[int], fingerprint: str, processes: int, *,

@@ -73,3 +73,40 @@ def test_how_many_processes_is_in_no_fingerprint():
         assert fingerprint(one) == fingerprint(three)
         three.map.ransac_iterations = 7  # a setting of the outcomes is in it
         assert fingerprint(one) != fingerprint(three)
+
+
+def test_an_interrupted_run_stops_its_processes_at_once(tmp_path):
+    """SIGINT to the run's process alone (``kill -INT``, a notebook's interrupt; a
+    terminal's Ctrl-C reaches every process of the group) ends the run in seconds, with its
+    processes, instead of waiting for their seeds (up to half an hour each)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "import sys; from pathlib import Path\n"
+        "from experiments.map_summarization import seed_processes\n"
+        "seed_processes.evaluate_in_processes('tests.experiments._seed_driver', None,\n"
+        "    Path(sys.argv[1]), [90, 91], 'abc', 2, progress=False)\n")
+    run = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)],
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        started = [tmp_path / "started90", tmp_path / "started91"]
+        deadline = time.monotonic() + 60
+        while not all(p.exists() and p.read_text() for p in started):
+            assert run.poll() is None and time.monotonic() < deadline, "the seeds never started"
+            time.sleep(0.1)
+        pids = [int(p.read_text()) for p in started]
+        t0 = time.monotonic()
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=30)
+        assert time.monotonic() - t0 < 10, "the run waited for its processes' seeds"
+        assert run.returncode != 0 and "KeyboardInterrupt" in err
+        time.sleep(0.5)
+        for pid in pids:  # no process is left evaluating a seed
+            with pytest.raises(ProcessLookupError):
+                os.kill(pid, 0)
+    finally:
+        run.kill()
+    assert seed_processes.missing_seeds(tmp_path, [90, 91], "abc") == [90, 91]
