@@ -365,9 +365,7 @@ def _fingerprint(config, scorers=None, rp=None) -> str:
     trained scorers' and RP's weights."""
     import jax
 
-    settings = config.map.to_dict()
-    settings.pop("seeds", None)
-    settings.pop("processes", None)  # how many at once, never what
+    settings = seed_processes.outcome_settings(config.map.to_dict())
     settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(rows_of(config)),
                     result_version=RESULT_VERSION,
                     world=presets.world_version("robotcar_seasons"))

@@ -73,8 +73,7 @@ def _fingerprint(config, params) -> str:
     """What makes one seed's outcomes: the config (less the seed list), the result
     version of the rows' rules and the predictors' weights."""
     settings = config.to_dict()
-    settings["map"].pop("seeds", None)
-    settings["map"].pop("processes", None)  # how many at once, never what
+    settings["map"] = seed_processes.outcome_settings(settings["map"])
     settings["result_version"] = RESULT_VERSION
     h = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode())
     for leaf in jax.tree_util.tree_leaves(params):

@@ -34,7 +34,7 @@ from pathlib import Path
 import ml_collections
 
 __all__ = ["SeedProcessError", "add_processes", "evaluate_in_processes", "missing_seeds",
-           "run_in_processes"]
+           "outcome_settings", "run_in_processes"]
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +60,19 @@ def add_processes(parser: argparse.ArgumentParser) -> None:
                         help="world seeds and label worlds evaluated at once, each in a "
                              "process of its own (config.map.processes, default 1; the "
                              "outcomes are the same; each process holds one world in memory)")
+
+
+def outcome_settings(map_settings: dict) -> dict:
+    """The map settings (``config.map.to_dict()``) that make a seed's outcomes, for its
+    fingerprint: without the seed list and how many seeds run at once (``processes``), and
+    with how many processes render a world (``workers``, whose images are the same for every
+    count) at its default, 0, so that a seed evaluated with any count is found again."""
+    settings = dict(map_settings)
+    settings.pop("seeds", None)
+    settings.pop("processes", None)
+    if "workers" in settings:
+        settings["workers"] = 0
+    return settings
 
 
 def missing_seeds(workdir: Path, seeds: Sequence[int], fingerprint: str) -> list[int]:

@@ -62,6 +62,8 @@ def test_a_killed_process_is_named_and_the_finished_seeds_are_kept(tmp_path):
 
 
 def test_how_many_processes_is_in_no_fingerprint():
+    """Neither how many seeds run at once nor how many processes render a world (whose
+    images are the same for any count: tests/sources/synthetic/test_presets.py)."""
     from experiments.map_summarization import conditions as mc
     from experiments.map_summarization import experiment as mexp
     from experiments.map_summarization.config import get_config
@@ -70,6 +72,7 @@ def test_how_many_processes_is_in_no_fingerprint():
                               (get_config, lambda c: mexp._fingerprint(c, {}))):
         one, three = make("tiny"), make("tiny")
         three.map.processes = 3
+        three.map.workers = 5
         assert fingerprint(one) == fingerprint(three)
         three.map.ransac_iterations = 7  # a setting of the outcomes is in it
         assert fingerprint(one) != fingerprint(three)
