@@ -38,7 +38,13 @@ import numpy as np
 from experiments.map_summarization import methods
 from experiments.map_summarization.pooling import THRESHOLD_KEYS, success
 from experiments.map_summarization.queries import bucket, load_queries
-from rp_jax.localize import LocalizationMap, build_vlad_index, localize, write_submission
+from rp_jax.localize import (
+    LocalizationMap,
+    build_vlad_index,
+    localize,
+    query_candidates,
+    write_submission,
+)
 from rp_jax.mapsum import (
     map_points_from_reconstruction,
     mean_per_point,
@@ -358,6 +364,12 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
     queries, mp = ctx.queries, ctx.map_points
     out = {"outcomes": {}, "coverage": {}, "kept_points": {}, "selecting_rank": {},
            "selecting_rank_run": {}, "seconds": {}}
+    # Each query's nearest full-map candidates, once: every summary's candidates are a
+    # subset of them, so its matches come from the table (the same matches, a product
+    # per query instead of one per query and summary).
+    full_lmap = LocalizationMap(mp, ctx.point_descriptors, ctx.extra["index"])
+    nearest = [query_candidates(q["query"], full_lmap, loc_kwargs["num_retrieved"])
+               for q in queries]
     bar = tqdm(total=len(ratios) * len(rows), desc=f"seed {ctx.seed} summaries", leave=False,
                disable=not progress)
     for row in rows:
@@ -379,7 +391,7 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
                 kept.append(int(keep.sum()))
                 lmap = LocalizationMap(mp, ctx.point_descriptors, ctx.extra["index"], keep)
                 for i in members:
-                    r = localize(queries[i]["query"], lmap, **loc_kwargs)
+                    r = localize(queries[i]["query"], lmap, **loc_kwargs, nearest=nearest[i])
                     e = (r.pose.R, r.pose.t) if r.success else None
                     est[queries[i]["query"].name] = e
                     res[i] = success(queries[i]["pose"], e)

@@ -22,16 +22,26 @@ lies in ``[min(L, e(c2)), e(c2)]``, so the ratio test keeps the match for certai
 when ``min(e1, L, e(c2)) >= ratio^2 e(c2)``. Rows without a certain answer are recomputed exactly in
 float64 (``_exact_rows``). The result is the exact (float64) nearest neighbour and ratio
 test, which the float32 ``"brute"`` reproduces except for distances within its rounding.
+
+A query is matched against many summaries of one map, each a subset of the full map's
+candidate points. ``nearest_table`` computes once, per query keypoint, its k nearest
+candidates with exact (float64) squared distances and a bound below which no other
+candidate lies; ``match_subset`` then matches against any subset of those candidates from
+the table alone, recomputing exactly only the rows whose answer the table leaves open (a
+row whose two nearest members are not among its k). Its matches are ``match_2d3d``'s on the
+subset.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from rp_jax import bf16
 
-__all__ = ["match_2d3d"]
+__all__ = ["NearestTable", "match_2d3d", "match_subset", "nearest_table"]
 
 _METHODS = ("auto", "kdtree", "brute", "bf16")
 _U32 = 2.0**-24  # float32's unit roundoff
@@ -212,8 +222,15 @@ def match_2d3d(
             dist, nn = _two_nearest_brute(q, p[valid])
         d1, n1 = dist[:, 0], nn[:, 0]
         good = d1 < ratio * dist[:, 1]
+    return _matches(good, valid[n1], d1, mutual_unique)
+
+
+def _matches(good: np.ndarray, nn: np.ndarray, d1: np.ndarray,
+             mutual_unique: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(query_idx, point_idx) of the rows that pass the ratio test (``good``), their nearest
+    point ``nn`` at distance ``d1``; with ``mutual_unique``, the closest query per point."""
     query_idx = np.flatnonzero(good)
-    point_idx = valid[n1[good]]
+    point_idx = nn[good]
     if mutual_unique and len(query_idx):
         order = np.lexsort((d1[good], point_idx))
         first = np.ones(len(order), dtype=bool)
@@ -221,3 +238,134 @@ def match_2d3d(
         sel = np.sort(order[first])
         query_idx, point_idx = query_idx[sel], point_idx[sel]
     return query_idx.astype(np.int64), point_idx.astype(np.int64)
+
+
+@dataclasses.dataclass(frozen=True)
+class NearestTable:
+    """Each query keypoint's nearest candidate points, for ``match_subset``.
+
+    Attributes:
+      columns: [Nq, k] int32 candidate rows (of the ``point_descriptors`` given to
+        ``nearest_table``), nearest first; ties in the lower row first.
+      sq: [Nq, k] float64 their squared distances, computed exactly as ``match_2d3d``
+        re-scores its candidates (the sum of squared differences).
+      beyond: [Nq] float64: every candidate not in the row's ``columns`` is at least this
+        far (squared); infinite where ``columns`` holds every finite candidate.
+      num_candidates: the number of candidate rows.
+    """
+
+    columns: np.ndarray
+    sq: np.ndarray
+    beyond: np.ndarray
+    num_candidates: int
+
+    @property
+    def nbytes(self) -> int:
+        return self.columns.nbytes + self.sq.nbytes + self.beyond.nbytes
+
+
+def nearest_table(query_descriptors: np.ndarray, point_descriptors: np.ndarray,
+                  k: int = 16) -> NearestTable:
+    """The ``k`` nearest candidates of every query keypoint (``NearestTable``).
+
+    The distances to every finite candidate come from one float64 product; the ``k + 1``
+    smallest of each row are found from it, the ``k`` nearest re-scored exactly, and
+    ``beyond`` is the (k+1)-th smallest less a bound on the product's rounding
+    (``(D + 10) u (|q| + max |p|)^2`` twice, u = 2**-53), so that it holds for the exact
+    distances too.
+    """
+    q64 = np.asarray(query_descriptors, np.float64)
+    p = np.asarray(point_descriptors, np.float32)
+    nq = len(q64)
+    finite = np.flatnonzero(np.all(np.isfinite(p), axis=1)) if len(p) else np.zeros(0, int)
+    kk = min(int(k), len(finite))
+    if nq == 0 or kk == 0:
+        return NearestTable(np.zeros((nq, 0), np.int32), np.zeros((nq, 0)),
+                            np.full(nq, np.inf), len(p))
+    p64 = p[finite].astype(np.float64)
+    q_sq = (q64 * q64).sum(1)
+    p_sq = (p64 * p64).sum(1)
+    d = q_sq[:, None] + p_sq[None] - 2.0 * (q64 @ p64.T)
+    r = np.arange(nq)[:, None]
+    if kk < len(finite):
+        part = np.argpartition(d, kk, axis=1)
+        top = part[:, :kk]
+        rounding = 2.0 * (q64.shape[1] + 10) * 2.0**-53 * (
+            np.sqrt(q_sq) + np.sqrt(p_sq.max())) ** 2
+        beyond = d[r[:, 0], part[:, kk]] - rounding
+    else:
+        top = np.broadcast_to(np.arange(kk), (nq, kk))
+        beyond = np.full(nq, np.inf)
+    diff = q64[:, None, :] - p64[top]
+    sq = np.einsum("nkd,nkd->nk", diff, diff)
+    cols = finite[top]
+    order = np.lexsort((cols, sq), axis=1)
+    return NearestTable(np.take_along_axis(cols, order, 1).astype(np.int32),
+                        np.take_along_axis(sq, order, 1), beyond, len(p))
+
+
+def match_subset(
+    table: NearestTable,
+    member: np.ndarray,
+    query_descriptors: np.ndarray,
+    member_descriptors: np.ndarray,
+    ratio: float = 0.8,
+    mutual_unique: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``match_2d3d(query_descriptors, member_descriptors, ratio, mutual_unique)`` for a
+    subset of a ``NearestTable``'s candidates, mostly from the table.
+
+    Args:
+      table: the query's ``nearest_table`` over all candidates.
+      member: [num_candidates] bool, the subset.
+      query_descriptors: [Nq, D] the query's descriptors (those of the table).
+      member_descriptors: [M, D] the descriptors of the subset's candidates, in candidate
+        order (M = member.sum()).
+      ratio, mutual_unique: as for ``match_2d3d``.
+
+    Returns:
+      (query_idx, point_idx): point_idx counts the subset's candidates, as ``match_2d3d``
+      on ``member_descriptors``.
+    """
+    member = np.asarray(member, bool)
+    if len(member) != table.num_candidates:
+        raise ValueError(f"{len(member)} member flags for a table of "
+                         f"{table.num_candidates} candidates")
+    q = np.asarray(query_descriptors, np.float32)
+    p = np.asarray(member_descriptors, np.float32)
+    members = np.flatnonzero(member)
+    if len(p) != len(members):
+        raise ValueError(f"{len(p)} descriptors for {len(members)} members")
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if len(q) == 0 or len(members) == 0:
+        return empty
+    valid = np.flatnonzero(np.all(np.isfinite(p), axis=1))
+    if len(valid) <= 1:  # nothing or one point: match_2d3d's own cases
+        return match_2d3d(q, p, ratio, mutual_unique)
+    r2 = float(ratio) ** 2
+    nq = len(q)
+    rows = np.arange(nq)
+    # Table entries of the subset that lie below every candidate outside the table.
+    ok = member[table.columns] & (table.sq < table.beyond[:, None])
+    has1 = ok.any(1)
+    first = ok.argmax(1)
+    ok[rows, first] = False
+    has2 = ok.any(1)
+    second = ok.argmax(1)
+    e1 = table.sq[rows, first]
+    # Without a second entry the second nearest member is at least ``beyond`` away.
+    e2 = np.where(has2, table.sq[rows, second], table.beyond)
+    nn = np.searchsorted(members, table.columns[rows, first])
+    good = has1 & (e1 < r2 * e2)
+    open_rows = np.flatnonzero(~has1 | (~has2 & ~good))
+    if len(open_rows):
+        d, i = _exact_rows(q[open_rows], p[valid])
+        nn[open_rows], e1[open_rows] = valid[i[:, 0]], d[:, 0]
+        good[open_rows] = d[:, 0] < r2 * d[:, 1]
+    global last_open_rows
+    last_open_rows = len(open_rows)
+    return _matches(good, nn, np.sqrt(e1), mutual_unique)
+
+
+# Rows the last match_subset call recomputed because the table left them open (diagnostic).
+last_open_rows = 0

@@ -18,7 +18,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from rp_jax.localize.matching import match_2d3d
+from rp_jax.localize.matching import NearestTable, match_2d3d, match_subset, nearest_table
 from rp_jax.localize.pnp import PoseEstimate, estimate_pose
 from rp_jax.localize.retrieval import GlobalIndex
 from rp_jax.localize.vlad import learn_vocabulary, rootsift, vlad
@@ -28,10 +28,12 @@ from rp_jax.sources.colmap_model import MapPoints
 __all__ = [
     "LocalizationMap",
     "LocalizationResult",
+    "QueryCandidates",
     "QueryImage",
     "build_vlad_index",
     "localize",
     "localize_queries",
+    "query_candidates",
 ]
 
 
@@ -125,6 +127,49 @@ class LocalizationMap:
         return np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
 
 
+@dataclasses.dataclass(frozen=True)
+class QueryCandidates:
+    """A query's candidate points in a map and its ``NearestTable`` over them, to localize
+    the query on many summaries of that map (``localize(..., nearest=)``): each summary's
+    candidates are a subset of these (the same database images are retrieved), so its
+    2D-3D matches come from the table instead of a product of their own.
+
+    Attributes:
+      rows: sorted rows (of the map given to ``LocalizationMap``, before any keep-mask) of
+        the candidate points.
+      table: the query keypoints' nearest candidates (``rp_jax.localize.matching``).
+    """
+
+    rows: np.ndarray
+    table: NearestTable
+
+
+def query_candidates(query: QueryImage, localization_map: LocalizationMap,
+                     num_retrieved: int = 10, k: int = 16) -> QueryCandidates:
+    """The query's candidates in ``localization_map`` (the points its ``num_retrieved``
+    retrieved images see) and each keypoint's ``k`` nearest of them."""
+    retrieved, _ = localization_map.index.query(query.global_descriptor, num_retrieved)
+    candidates = localization_map.points_seen_by(retrieved)
+    table = nearest_table(query.descriptors, localization_map.point_descriptors[candidates], k)
+    return QueryCandidates(localization_map.rows[candidates], table)
+
+
+def _match(query: QueryImage, localization_map: LocalizationMap, candidates: np.ndarray,
+           ratio: float, nearest: QueryCandidates | None) -> tuple[np.ndarray, np.ndarray]:
+    """2D-3D matches of the query's keypoints to ``candidates`` (rows of the map), from the
+    query's table where the candidates are a subset of its."""
+    descriptors = localization_map.point_descriptors[candidates]
+    if nearest is not None:
+        rows = localization_map.rows[candidates]
+        pos = np.searchsorted(nearest.rows, rows)
+        inside = pos < len(nearest.rows)
+        if inside.all() and np.array_equal(nearest.rows[pos], rows):
+            member = np.zeros(len(nearest.rows), bool)
+            member[pos] = True
+            return match_subset(nearest.table, member, query.descriptors, descriptors, ratio)
+    return match_2d3d(query.descriptors, descriptors, ratio=ratio)
+
+
 def localize(
     query: QueryImage,
     localization_map: LocalizationMap,
@@ -135,6 +180,7 @@ def localize(
     ransac_iterations: int = 10_000,
     seed: int = 0,
     timings: dict[str, float] | None = None,
+    nearest: QueryCandidates | None = None,
 ) -> LocalizationResult:
     """Localizes one query image against the summary map.
 
@@ -149,6 +195,9 @@ def localize(
       seed: RANSAC seed.
       timings: if given, receives the seconds of each step ("retrieval", "matching",
         "pnp"; the benchmark's breakdown).
+      nearest: the query's ``query_candidates`` in the map this one summarizes: the same
+        matches, from its table (a map whose candidates are not a subset of its is matched
+        as without it).
 
     Returns:
       The pose (``pose.success`` False on failure) and diagnostics.
@@ -157,9 +206,7 @@ def localize(
     retrieved, _ = localization_map.index.query(query.global_descriptor, num_retrieved)
     candidates = localization_map.points_seen_by(retrieved)
     t1 = time.perf_counter()
-    q_idx, c_idx = match_2d3d(
-        query.descriptors, localization_map.point_descriptors[candidates], ratio=ratio
-    )
+    q_idx, c_idx = _match(query, localization_map, candidates, ratio, nearest)
     rows = candidates[c_idx]
     t2 = time.perf_counter()
     pose = estimate_pose(

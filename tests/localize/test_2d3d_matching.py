@@ -1,6 +1,7 @@
 """Tests of rp_jax.localize.matching (KD-tree nearest neighbour + ratio test)."""
 
 import numpy as np
+import pytest
 
 from rp_jax.localize import match_2d3d
 
@@ -120,3 +121,53 @@ def test_bf16_adversarial_ties_and_ratio_boundary():
     np.testing.assert_array_equal(got[1], ref[1])
     assert matching.last_recomputed_rows > 0
     assert 0 < len(ref[0]) < len(queries)
+
+
+def _sift_norm(rng, n, dim=128):
+    """Non-negative descriptors of norm about 512 in whole numbers, as OpenCV's SIFT gives."""
+    d = rng.gamma(0.6, size=(n, dim))
+    return (512.0 * d / np.linalg.norm(d, axis=1, keepdims=True)).round().astype(np.float32)
+
+
+def test_a_subset_matched_from_the_table_is_matched_as_on_its_own():
+    from rp_jax.localize import matching
+    from rp_jax.localize.matching import match_subset, nearest_table
+
+    rng = np.random.default_rng(3)
+    points = _sift_norm(rng, 600)
+    points[7] = points[8]  # two points with one descriptor: a tie for every query
+    points[20] = np.nan  # a point without a descriptor is never matched
+    seen = rng.choice(np.delete(np.arange(600), 20), 250)
+    near = points[seen] + rng.normal(0, 12, (250, 128)).astype(np.float32)
+    queries = np.concatenate([near, _sift_norm(rng, 150), points[[7, 8]]])
+    queries[-1] = queries[-2]  # two keypoints with one descriptor
+    opened = 0
+    for k in (2, 16, 600, 1000):  # a small table leaves rows open; a large one holds all
+        table = nearest_table(queries, points, k=k)
+        assert table.columns.shape == (402, min(k, 599))
+        for keep in (1.0, 0.9, 0.5, 0.1, 0.02, 2 / 600, 1 / 600, 0.0):
+            member = rng.random(600) < keep
+            member[20] = keep > 0.5  # the NaN point in some subsets
+            if keep == 2 / 600:
+                member[:] = False
+                member[[7, 8]] = True  # the tied pair alone
+            for ratio, unique in ((0.8, True), (0.8, False), (0.95, True)):
+                want = match_2d3d(queries, points[member], ratio, unique)
+                got = match_subset(table, member, queries, points[member], ratio, unique)
+                for w, g in zip(want, got):
+                    np.testing.assert_array_equal(g, w, err_msg=f"k={k} keep={keep}")
+            opened += matching.last_open_rows
+        assert (table.sq[:, 1:] >= table.sq[:, :-1]).all()  # nearest first
+    assert opened > 0  # the exact recomputation was exercised
+
+
+def test_match_subset_refuses_flags_or_descriptors_of_another_size():
+    from rp_jax.localize.matching import match_subset, nearest_table
+
+    rng = np.random.default_rng(0)
+    points, queries = _sift_norm(rng, 50), _sift_norm(rng, 10)
+    table = nearest_table(queries, points, k=4)
+    with pytest.raises(ValueError, match="49 member flags for a table of 50 candidates"):
+        match_subset(table, np.ones(49, bool), queries, points[:49])
+    with pytest.raises(ValueError, match="3 descriptors for 50 members"):
+        match_subset(table, np.ones(50, bool), queries, points[:3])

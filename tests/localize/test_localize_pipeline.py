@@ -126,3 +126,38 @@ def test_localize_on_summary_map_and_recall():
         K,
     )
     assert not localize(clutter, lmap, num_retrieved=3).success
+
+
+def test_summaries_localized_from_the_full_maps_table_as_on_their_own():
+    """``localize(..., nearest=query_candidates(query, full map))`` on summaries of that
+    map: the same matches, pose and inliers as without the table."""
+    from rp_jax.localize import matching, query_candidates
+
+    rng = np.random.default_rng(2)
+    mp, desc, obs_desc, db_desc = _synthetic_map(rng)
+    index, words = build_vlad_index(db_desc, num_words=16, seed=0)
+    point_desc = point_descriptors(mp, obs_desc)
+    full = LocalizationMap(mp, point_desc, index)
+    queries = [_query(rng, f"q{k}.jpg", mp.xyz, desc, words, C=[x, 0.3, 1.5], yaw=2.0)[0]
+               for k, x in enumerate([-10.0, 4.0])]
+    tables = [query_candidates(q, full, num_retrieved=3, k=8) for q in queries]
+    opened, localized = 0, 0
+    for ratio in (0.0, 0.5, 0.9, 0.99):
+        keep = prune_by_score(rng.random(mp.num_points), None, ratio) if ratio else None
+        lmap = LocalizationMap(mp, point_desc, index, keep=keep)
+        for q, table in zip(queries, tables):
+            alone = localize(q, lmap, num_retrieved=3)
+            from_table = localize(q, lmap, num_retrieved=3, nearest=table)
+            opened += matching.last_open_rows
+            localized += alone.success
+            assert from_table.num_matches == alone.num_matches
+            np.testing.assert_array_equal(from_table.matched_points, alone.matched_points)
+            np.testing.assert_array_equal(from_table.inlier_points, alone.inlier_points)
+            assert from_table.success == alone.success
+            if alone.success:
+                np.testing.assert_array_equal(from_table.pose.t, alone.pose.t)
+    assert localized >= 4 and opened > 0  # poses found; some rows recomputed exactly
+    # A map whose candidates are not the table's (another retrieval) is matched on its own.
+    other = localize(queries[0], full, num_retrieved=5, nearest=tables[0])
+    np.testing.assert_array_equal(other.matched_points,
+                                  localize(queries[0], full, num_retrieved=5).matched_points)
