@@ -239,6 +239,59 @@ def _check_localize_agree(problem: LocalizationProblem, params: dict) -> dict[st
     return out
 
 
+SUMMARY_RATIOS = (0.5, 0.7, 0.9)
+
+
+def _summaries_matching(problem: LocalizationProblem, params: dict, repeats: int,
+                        progress: bool) -> dict[str, Any]:
+    """2D-3D matching of every query on summaries of the map (Sec. V-A: map summarization
+    localizes each query on many summaries of one map), ms per query and summary: each
+    summary matched on its own (``match_2d3d`` on its candidates) against matched from the
+    query's table of nearest full-map candidates (``query_candidates`` once per query,
+    ``match_subset`` per summary), the table's own time reported apart. The summaries keep
+    a random ``1 - ratio`` of the points (``SUMMARY_RATIOS``); both give the same matches
+    (checked first)."""
+    from rp_jax.localize import LocalizationMap, localize, query_candidates
+    from rp_jax.progress import bar as tqdm  # the one progress helper
+
+    rng = np.random.default_rng(1)
+    full = problem.lmap
+    maps = [LocalizationMap(full.map_points, full.point_descriptors, full.index,
+                            keep=rng.random(full.map_points.num_points) >= r)
+            for r in SUMMARY_RATIOS]
+    k = params["num_retrieved"]
+    tables = [query_candidates(q, full, k) for q in problem.queries]
+    for q, table in zip(problem.queries, tables):
+        for lmap in maps:
+            a = localize(q, lmap, **params)
+            b = localize(q, lmap, **params, nearest=table)
+            if not np.array_equal(a.matched_points, b.matched_points):
+                raise RuntimeError(f"{q.name}: the table's matches differ from its own")
+    n = len(problem.queries) * len(maps)
+    ms: dict[str, list[float]] = {"alone": [], "from_table": [], "table": []}
+    for r in tqdm(range(repeats), desc="summary rounds", disable=not progress, leave=False):
+        t0 = time.perf_counter()
+        tables = [query_candidates(q, full, k) for q in problem.queries]
+        ms["table"].append(1e3 * (time.perf_counter() - t0) / len(problem.queries))
+        for side in ("alone", "from_table") if r % 2 == 0 else ("from_table", "alone"):
+            acc = 0.0
+            for q, table in zip(problem.queries, tables):
+                for lmap in maps:
+                    steps: dict[str, float] = {}
+                    localize(q, lmap, **params, timings=steps,
+                             nearest=table if side == "from_table" else None)
+                    acc += steps["matching"]
+            ms[side].append(1e3 * acc / n)
+    return {
+        "unit": "ms per query and summary (matching step)",
+        "ratios": list(SUMMARY_RATIOS),
+        "alone": summarize_samples(ms["alone"]),
+        "from_table": summarize_samples(ms["from_table"]),
+        "table_ms_per_query": summarize_samples(ms["table"]),
+        "ratio": pairwise_ratio([1 / x for x in ms["from_table"]], [1 / x for x in ms["alone"]]),
+    }
+
+
 def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> dict[str, Any]:
     """Per-query localization time (Sec. V-B), step by step: ours vs plain OpenCV.
 
@@ -301,6 +354,7 @@ def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> d
     def speed_ratio(k):  # ours/peer speed = peer ms / our ms, pair by pair
         return pairwise_ratio([1 / x for x in ms["ours"][k]], [1 / x for x in ms["peer"][k]])
 
+    summaries = _summaries_matching(problem, params, repeats, progress)
     kp = [len(q.xy) for q in problem.queries]
     index, k = problem.lmap.index, params["num_retrieved"]
     cands = [
@@ -337,6 +391,7 @@ def run_localize_stage(size_name: str, repeats: int, progress: bool = True) -> d
             "steps that differ in implementation are retrieval and 2D-3D matching."
         ),
         "equality": equality,
+        "summaries": summaries,
         "params": params,
         "num_points": problem.lmap.map_points.num_points,
         "num_images": len(problem.db_names),

@@ -349,6 +349,18 @@ def _localize_table(entry: dict[str, Any]) -> list[str]:
         f"- {entry['pnp_note']}",
         "",
     ]
+    sm = entry.get("summaries")
+    if sm:
+        a, b, t = sm["alone"], sm["from_table"], sm["table_ms_per_query"]
+        ratios = ", ".join(f"{100 * r:.0f} %" for r in sm["ratios"])
+        lines += [
+            f"Matching each query on summaries of the map ({ratios} of the points pruned at "
+            f"random), {sm['unit']}: {_fmt(a['median'])} on their own (`match_2d3d`), "
+            f"{_fmt(b['median'])} from the query's table of nearest full-map candidates "
+            f"(`match_subset`), {_fmt(sm['ratio'])}× faster; the table, once per query: "
+            f"{_fmt(t['median'])} ms. The same matches.",
+            "",
+        ]
     return lines
 
 

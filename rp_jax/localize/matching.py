@@ -268,40 +268,58 @@ def nearest_table(query_descriptors: np.ndarray, point_descriptors: np.ndarray,
                   k: int = 16) -> NearestTable:
     """The ``k`` nearest candidates of every query keypoint (``NearestTable``).
 
-    The distances to every finite candidate come from one float64 product; the ``k + 1``
-    smallest of each row are found from it, the ``k`` nearest re-scored exactly, and
-    ``beyond`` is the (k+1)-th smallest less a bound on the product's rounding
-    (``(D + 10) u (|q| + max |p|)^2`` twice, u = 2**-53), so that it holds for the exact
+    The distances to every finite candidate come from one float32 product; the ``k + 1``
+    smallest of each row are found from it, the ``k`` nearest re-scored exactly (float64),
+    and ``beyond`` is the (k+1)-th smallest less a bound on the product's rounding
+    (``(D + 10) u (|q| + max |p|)^2`` twice, u = 2**-24), so that it holds for the exact
     distances too.
     """
-    q64 = np.asarray(query_descriptors, np.float64)
+    q = np.asarray(query_descriptors, np.float32)
     p = np.asarray(point_descriptors, np.float32)
-    nq = len(q64)
+    nq = len(q)
     finite = np.flatnonzero(np.all(np.isfinite(p), axis=1)) if len(p) else np.zeros(0, int)
     kk = min(int(k), len(finite))
     if nq == 0 or kk == 0:
         return NearestTable(np.zeros((nq, 0), np.int32), np.zeros((nq, 0)),
                             np.full(nq, np.inf), len(p))
-    p64 = p[finite].astype(np.float64)
-    q_sq = (q64 * q64).sum(1)
-    p_sq = (p64 * p64).sum(1)
-    d = q_sq[:, None] + p_sq[None] - 2.0 * (q64 @ p64.T)
-    r = np.arange(nq)[:, None]
-    if kk < len(finite):
-        part = np.argpartition(d, kk, axis=1)
-        top = part[:, :kk]
-        rounding = 2.0 * (q64.shape[1] + 10) * 2.0**-53 * (
-            np.sqrt(q_sq) + np.sqrt(p_sq.max())) ** 2
-        beyond = d[r[:, 0], part[:, kk]] - rounding
-    else:
-        top = np.broadcast_to(np.arange(kk), (nq, kk))
-        beyond = np.full(nq, np.inf)
-    diff = q64[:, None, :] - p64[top]
-    sq = np.einsum("nkd,nkd->nk", diff, diff)
-    cols = finite[top]
-    order = np.lexsort((cols, sq), axis=1)
-    return NearestTable(np.take_along_axis(cols, order, 1).astype(np.int32),
-                        np.take_along_axis(sq, order, 1), beyond, len(p))
+    pf = p[finite]
+    q_sq = np.einsum("ij,ij->i", q, q)
+    p_sq = np.einsum("ij,ij->i", pf, pf)
+    p_max = float(np.sqrt(p_sq.max()))
+    columns = np.empty((nq, kk), np.int32)
+    sq = np.empty((nq, kk), np.float64)
+    beyond = np.full(nq, np.inf)
+
+    def rows(start: int) -> None:
+        sl = slice(start, min(nq, start + _ROW_BUCKET))
+        n = sl.stop - sl.start
+        if kk < len(finite):
+            d = q[sl] @ pf.T
+            d *= -2.0
+            d += p_sq[None]
+            d += q_sq[sl, None]
+            part = np.argpartition(d, kk, axis=1)
+            top = part[:, :kk]
+            rounding = 2.0 * (q.shape[1] + 10) * _U32 * (
+                np.sqrt(q_sq[sl].astype(np.float64)) + p_max) ** 2
+            beyond[sl] = d[np.arange(n), part[:, kk]].astype(np.float64) - rounding
+        else:
+            top = np.broadcast_to(np.arange(kk), (n, kk))
+        diff = q[sl].astype(np.float64)[:, None, :] - pf[top].astype(np.float64)
+        e = np.einsum("nkd,nkd->nk", diff, diff)
+        cols = finite[top]
+        order = np.lexsort((cols, e), axis=1)
+        columns[sl] = np.take_along_axis(cols, order, 1)
+        sq[sl] = np.take_along_axis(e, order, 1)
+
+    if nq <= _ROW_BUCKET:
+        rows(0)
+    else:  # NumPy's product, partition and sums release the GIL: two blocks of rows at once
+        import concurrent.futures as cf
+
+        with cf.ThreadPoolExecutor(max_workers=2) as pool:
+            list(pool.map(rows, range(0, nq, _ROW_BUCKET)))
+    return NearestTable(columns, sq, beyond, len(p))
 
 
 def match_subset(
@@ -357,15 +375,22 @@ def match_subset(
     e2 = np.where(has2, table.sq[rows, second], table.beyond)
     nn = np.searchsorted(members, table.columns[rows, first])
     good = has1 & (e1 < r2 * e2)
+    d1 = np.sqrt(e1)
     open_rows = np.flatnonzero(~has1 | (~has2 & ~good))
-    if len(open_rows):
+    if len(open_rows) * len(valid) > _EXACT_LIMIT:  # as match_2d3d answers them
+        n1, d1[open_rows], good[open_rows] = _two_nearest_bf16(q[open_rows], p[valid], ratio)
+        nn[open_rows] = valid[n1]
+    elif len(open_rows):  # a few rows: exactly, without the padded product's fixed cost
         d, i = _exact_rows(q[open_rows], p[valid])
-        nn[open_rows], e1[open_rows] = valid[i[:, 0]], d[:, 0]
+        nn[open_rows], d1[open_rows] = valid[i[:, 0]], np.sqrt(d[:, 0])
         good[open_rows] = d[:, 0] < r2 * d[:, 1]
     global last_open_rows
     last_open_rows = len(open_rows)
-    return _matches(good, nn, np.sqrt(e1), mutual_unique)
+    return _matches(good, nn, d1, mutual_unique)
 
 
+# Open rows x members up to which match_subset answers them with _exact_rows (float64, a
+# few ms) instead of the bfloat16 product (a fixed cost of a padded 512-row product).
+_EXACT_LIMIT = 1_000_000
 # Rows the last match_subset call recomputed because the table left them open (diagnostic).
 last_open_rows = 0

@@ -293,6 +293,12 @@ def test_localize_report_shape(tiny_sum_loc_report):
     assert eq["matches_agree_fraction"] >= 0.99
     assert eq["pose_max_position_diff_m"] < 0.05 and eq["pose_max_rotation_diff_deg"] < 0.5
     assert "## localize" in md and "| **whole query** |" in md and "PnP-RANSAC" in md
+    sm = e["summaries"]  # matching on summaries, on their own and from the query's table
+    for side in ("alone", "from_table", "table_ms_per_query"):
+        assert 0 < sm[side]["min"] <= sm[side]["median"] <= sm[side]["max"]
+        assert len(sm[side]["samples"]) == 2
+    assert sm["ratio"] > 0 and sm["ratios"] == [0.5, 0.7, 0.9]
+    assert "from the query's table of nearest full-map candidates" in md
 
 
 def test_summarize_skips_kcover_past_its_budget(monkeypatch):

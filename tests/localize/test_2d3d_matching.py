@@ -129,8 +129,13 @@ def _sift_norm(rng, n, dim=128):
     return (512.0 * d / np.linalg.norm(d, axis=1, keepdims=True)).round().astype(np.float32)
 
 
-def test_a_subset_matched_from_the_table_is_matched_as_on_its_own():
+@pytest.mark.parametrize("open_rows_by", ["exact", "bf16"])
+def test_a_subset_matched_from_the_table_is_matched_as_on_its_own(open_rows_by, monkeypatch):
     from rp_jax.localize import matching
+
+    # The rows the table leaves open are answered in float64 up to a size, by the
+    # bfloat16 product above it: both ways here.
+    monkeypatch.setattr(matching, "_EXACT_LIMIT", 10**12 if open_rows_by == "exact" else 0)
     from rp_jax.localize.matching import match_subset, nearest_table
 
     rng = np.random.default_rng(3)
