@@ -30,7 +30,9 @@ import datetime as dt
 import json
 import logging
 import time
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -97,6 +99,8 @@ RESULT_VERSION = 3
 # the run's five ratios (50-90 % pruned) the half of every map kept at none of them is one
 # tie, whatever the rule thinks of it; 5 %...95 % in steps of 5 resolves a top-per-part rule
 # to twentieths of its within-part rank and treats every rule (K-cover too) alike.
+# Queries localized at once in a world's stage 7 (``_Localizer``).
+LOCALIZE_THREADS = 2
 SELECTING_GRID = tuple(round(0.05 * k, 2) for k in range(1, 20))
 # The AUCs' positives come only from queries the full map localizes within this threshold.
 CORRECT_POSE = THRESHOLD_KEYS.index("5m_10deg")
@@ -372,49 +376,87 @@ def summarize_and_localize(ctx: methods.WorldContext, rows: list[methods.Row],
                for q in queries]
     bar = tqdm(total=len(ratios) * len(rows), desc=f"seed {ctx.seed} summaries", leave=False,
                disable=not progress)
-    for row in rows:
-        t0 = time.perf_counter()
-        units = _units(methods.per_of(row, models), queries)
-        rank = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
-        # The run's ratios that lie on the grid count there too: drawn once, not again.
-        on_grid = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
-        out["outcomes"][row.name], out["coverage"][row.name] = {}, {}
-        out["kept_points"][row.name] = {}
-        for ratio in ratios:
-            key = f"{ratio:.1f}"
-            res: list = [None] * len(queries)
-            est: dict = {}
-            covs, kept = [], []
-            for at, members in units:
-                keep = row.select(ctx, row, ratio, at)
-                covs.append(image_coverage(mp, keep))
-                kept.append(int(keep.sum()))
-                lmap = LocalizationMap(mp, ctx.point_descriptors, ctx.extra["index"], keep)
-                for i in members:
-                    r = localize(queries[i]["query"], lmap, **loc_kwargs, nearest=nearest[i])
+    with _Localizer(queries, loc_kwargs, nearest) as localizer:
+        for row in rows:
+            t0 = time.perf_counter()
+            units = _units(methods.per_of(row, models), queries)
+            rank = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
+            # The run's ratios that lie on the grid count there too: drawn once, not again.
+            on_grid = [None if c is None else np.zeros(len(c), np.int64) for c in full.candidates]
+            out["outcomes"][row.name], out["coverage"][row.name] = {}, {}
+            out["kept_points"][row.name] = {}
+            for ratio in ratios:
+                key = f"{ratio:.1f}"
+                res: list = [None] * len(queries)
+                est: dict = {}
+                covs, kept = [], []
+                for at, members in units:
+                    keep = row.select(ctx, row, ratio, at)
+                    covs.append(image_coverage(mp, keep))
+                    kept.append(int(keep.sum()))
+                    lmap = LocalizationMap(mp, ctx.point_descriptors, ctx.extra["index"], keep)
+                    for i in members:
+                        localizer.submit(i, lmap)
+                        if rank[i] is not None:
+                            rank[i] += keep[full.candidates[i]]
+                            if _on(ratio, SELECTING_GRID):
+                                on_grid[i] += keep[full.candidates[i]]
+                    if row.name == "rp" and abs(ratio - 0.5) < 1e-9 and not covs[1:]:
+                        write_summary_model(ctx.extra["reconstruction"], mp, keep,
+                                            out_dir / "summaries" / f"rp_{key}")
+                for i, r in localizer.results():
                     e = (r.pose.R, r.pose.t) if r.success else None
                     est[queries[i]["query"].name] = e
                     res[i] = success(queries[i]["pose"], e)
-                    if rank[i] is not None:
-                        rank[i] += keep[full.candidates[i]]
-                        if _on(ratio, SELECTING_GRID):
-                            on_grid[i] += keep[full.candidates[i]]
-                if row.name == "rp" and abs(ratio - 0.5) < 1e-9 and not covs[1:]:
-                    write_summary_model(ctx.extra["reconstruction"], mp, keep,
-                                        out_dir / "summaries" / f"rp_{key}")
-            out["outcomes"][row.name][key] = res
-            out["coverage"][row.name][key] = [min(c[0] for c in covs),
-                                              float(np.median([c[1] for c in covs]))]
-            out["kept_points"][row.name][key] = kept
-            write_submission(out_dir / "submissions" / f"{row.name}_{key}.txt", est)
-            bar.update()
-        out["selecting_rank"][row.name] = selecting_rank(
-            ctx, row, units, [r for r in SELECTING_GRID if not _on(r, ratios)],
-            full.candidates, start=on_grid)
-        out["selecting_rank_run"][row.name] = rank
-        out["seconds"][row.name] = time.perf_counter() - t0
+                out["outcomes"][row.name][key] = res
+                out["coverage"][row.name][key] = [min(c[0] for c in covs),
+                                                  float(np.median([c[1] for c in covs]))]
+                out["kept_points"][row.name][key] = kept
+                write_submission(out_dir / "submissions" / f"{row.name}_{key}.txt", est)
+                bar.update()
+            out["selecting_rank"][row.name] = selecting_rank(
+                ctx, row, units, [r for r in SELECTING_GRID if not _on(r, ratios)],
+                full.candidates, start=on_grid)
+            out["selecting_rank_run"][row.name] = rank
+            out["seconds"][row.name] = time.perf_counter() - t0
     bar.close()
     return out
+
+
+class _Localizer:
+    """Queries localized ``LOCALIZE_THREADS`` at a time on their summaries (PnP-RANSAC and
+    the products release the GIL, and each localization is deterministic), the results
+    taken in the order submitted; at most a few summaries wait in memory."""
+
+    def __init__(self, queries: list[dict], loc_kwargs: dict, nearest: list):
+        self.queries, self.loc_kwargs, self.nearest = queries, loc_kwargs, nearest
+        self.pool = ThreadPoolExecutor(LOCALIZE_THREADS)
+        self.pending: deque = deque()
+        self.done: list = []
+
+    def __enter__(self) -> _Localizer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def _take(self, limit: int) -> None:
+        while len(self.pending) > limit:
+            i, future = self.pending.popleft()
+            self.done.append((i, future.result()))
+
+    def submit(self, i: int, lmap: LocalizationMap) -> None:
+        """Localize query ``i`` on ``lmap`` (its result comes with ``results``)."""
+        self._take(2 * LOCALIZE_THREADS)
+        self.pending.append((i, self.pool.submit(
+            localize, self.queries[i]["query"], lmap, **self.loc_kwargs,
+            nearest=self.nearest[i])))
+
+    def results(self) -> list:
+        """(query, ``LocalizationResult``) of everything submitted since the last call."""
+        self._take(0)
+        out, self.done = self.done, []
+        return out
 
 
 def inlier_aucs(ctx: methods.WorldContext, rows: list[methods.Row], full: FullMap,

@@ -51,3 +51,26 @@ def test_failure_on_too_few_or_random_matches():
     assert not est.success and est.R is None
     with pytest.raises(ValueError, match="keypoints"):
         estimate_pose(np.zeros((5, 2)), np.zeros((6, 3)), K)
+
+
+def test_poses_estimated_in_threads_are_those_estimated_one_after_the_other():
+    """Map summarization localizes several queries at once in threads: each estimate must
+    not depend on what the other threads do (RANSAC's sampling included)."""
+    import concurrent.futures as cf
+
+    rng = np.random.default_rng(7)
+    problems = []
+    for _ in range(12):
+        R, t = _pose(rng)
+        xy, xyz, _ = _correspondences(rng, R, t, n=120, outlier_frac=0.6)
+        problems.append((xy, xyz))
+
+    def solve(problem):
+        est = estimate_pose(*problem, K, reprojection_error=4.0, iterations=2000)
+        return est.success, est.inliers.tolist(), None if est.R is None else est.R.tolist()
+
+    alone = [solve(p) for p in problems]
+    with cf.ThreadPoolExecutor(4) as pool:
+        for _ in range(3):
+            assert list(pool.map(solve, problems)) == alone
+    assert sum(s for s, _, _ in alone) >= 6  # poses found, not only failures
