@@ -87,8 +87,9 @@ def test_an_interrupted_run_stops_its_processes_at_once(tmp_path):
     import sys
     import time
 
-    script = (
-        "import sys; from pathlib import Path\n"
+    script = (  # SIGINT as a terminal's process has it (a background shell ignores it)
+        "import signal, sys; from pathlib import Path\n"
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         "from experiments.map_summarization import seed_processes\n"
         "seed_processes.evaluate_in_processes('tests.experiments._seed_driver', None,\n"
         "    Path(sys.argv[1]), [90, 91], 'abc', 2, progress=False)\n")
