@@ -113,7 +113,7 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
     The world's map is described without any repeatability predictor (the table has no RP
     columns); its queries are every query of the layout, localized on the full map.
     """
-    from rp_jax.localize import LocalizationMap, localize
+    from rp_jax.localize import LocalizationMap, localize_all
 
     path = _labels_path(out_dir, layout, seed)
     fingerprint = _fingerprint(config, layout)
@@ -129,7 +129,7 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
         raise ValueError(f"{root}: no query with a ground-truth pose to label")
     lmap = LocalizationMap(world.map_points, world.point_descriptors, world.index)
     kwargs = localization_kwargs(config, seed)
-    results = [localize(q["query"], lmap, **kwargs) for q in queries]
+    results = localize_all([q["query"] for q in queries], lmap, **kwargs)
     labels = labels_of_queries(
         results, [lmap.points_seen_by(r.retrieved) for r in results],
         [q["pose"] for q in queries], [q["query"].name for q in queries],

@@ -262,7 +262,7 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
     if int(slice_id) == TEST_SLICE:
         raise ValueError(f"slice {TEST_SLICE} is the test slice: it never gives labels")
     from experiments.map_summarization.queries import load_queries
-    from rp_jax.localize import LocalizationMap, build_vlad_index, localize
+    from rp_jax.localize import LocalizationMap, build_vlad_index, localize_all
     from rp_jax.mapsum import (
         map_points_from_reconstruction,
         mean_per_point,
@@ -316,10 +316,11 @@ def slice_outcomes(config, seed: int, slice_id: int, predictor, out_dir: Path, *
         queries = load_queries(root, slice_id, None, m.max_keypoints, vocabulary, progress,
                                reference={im.name for im in rec.images.values()})
         lmap = LocalizationMap(mp, point_desc, index)
-        results = [localize(q["query"], lmap, num_retrieved=m.num_retrieved,
-                            ratio=m.match_ratio, reprojection_error=m.reprojection_error,
-                            min_inliers=m.min_inliers, ransac_iterations=m.ransac_iterations,
-                            seed=seed) for q in queries]
+        results = localize_all([q["query"] for q in queries], lmap,
+                               num_retrieved=m.num_retrieved, ratio=m.match_ratio,
+                               reprojection_error=m.reprojection_error,
+                               min_inliers=m.min_inliers,
+                               ransac_iterations=m.ransac_iterations, seed=seed)
         labels = labels_of_queries(
             results, [lmap.points_seen_by(r.retrieved) for r in results],
             [q["pose"] for q in queries], [q["query"].name for q in queries],

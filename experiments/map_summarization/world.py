@@ -41,9 +41,11 @@ from experiments.map_summarization import methods
 from experiments.map_summarization.pooling import THRESHOLD_KEYS, success
 from experiments.map_summarization.queries import bucket, load_queries
 from rp_jax.localize import (
+    LOCALIZE_THREADS,
     LocalizationMap,
     build_vlad_index,
     localize,
+    localize_all,
     query_candidates,
     write_submission,
 )
@@ -99,8 +101,6 @@ RESULT_VERSION = 3
 # the run's five ratios (50-90 % pruned) the half of every map kept at none of them is one
 # tie, whatever the rule thinks of it; 5 %...95 % in steps of 5 resolves a top-per-part rule
 # to twentieths of its within-part rank and treats every rule (K-cover too) alike.
-# Queries localized at once in a world's stage 7 (``_Localizer``).
-LOCALIZE_THREADS = 2
 SELECTING_GRID = tuple(round(0.05 * k, 2) for k in range(1, 20))
 # The AUCs' positives come only from queries the full map localizes within this threshold.
 CORRECT_POSE = THRESHOLD_KEYS.index("5m_10deg")
@@ -253,7 +253,7 @@ def localize_full_map(config, world: WorldMap, queries: list[dict], loc_kwargs: 
     """Stage 4: every query on the full map; the submission ``full_map.txt``."""
     mp = world.map_points
     lmap = LocalizationMap(mp, world.point_descriptors, world.index)
-    results = [localize(q["query"], lmap, **loc_kwargs) for q in queries]
+    results = localize_all([q["query"] for q in queries], lmap, **loc_kwargs)
     outcomes = [success(q["pose"], (r.pose.R, r.pose.t) if r.success else None)
                 for q, r in zip(queries, results)]
     inliers_by_date = {d: np.zeros(mp.num_points, np.int64)

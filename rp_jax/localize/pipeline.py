@@ -31,7 +31,9 @@ __all__ = [
     "QueryCandidates",
     "QueryImage",
     "build_vlad_index",
+    "LOCALIZE_THREADS",
     "localize",
+    "localize_all",
     "localize_queries",
     "query_candidates",
 ]
@@ -229,14 +231,41 @@ def localize(
     )
 
 
+# Queries localized at once by ``localize_all``: PnP-RANSAC and the matrix products release
+# the GIL, so two threads keep two cores busy.
+LOCALIZE_THREADS = 2
+
+
+def localize_all(queries: list[QueryImage], localization_map: LocalizationMap, *,
+                 threads: int = LOCALIZE_THREADS, progress: bool = False,
+                 **kwargs) -> list[LocalizationResult]:
+    """:func:`localize` for every query, ``threads`` at a time, the results in the queries'
+    order; kwargs as for :func:`localize`. Each localization is deterministic (RANSAC's
+    sampling included), so the results are those of one thread."""
+    import concurrent.futures as cf
+
+    with tqdm(total=len(queries), desc="localize", leave=False, disable=not progress) as bar:
+        if threads <= 1 or len(queries) < 2:
+            out = []
+            for q in queries:
+                out.append(localize(q, localization_map, **kwargs))
+                bar.update()
+            return out
+        with cf.ThreadPoolExecutor(threads) as pool:
+            out = []
+            for r in pool.map(lambda q: localize(q, localization_map, **kwargs), queries):
+                out.append(r)
+                bar.update()
+            return out
+
+
 def localize_queries(
     queries: list[QueryImage], localization_map: LocalizationMap, **kwargs
 ) -> dict[str, LocalizationResult]:
-    """:func:`localize` for every query (tqdm progress); kwargs as for :func:`localize`."""
-    return {
-        q.name: localize(q, localization_map, **kwargs)
-        for q in tqdm(queries, desc="localize", leave=False, disable=len(queries) < 20)
-    }
+    """:func:`localize_all` by query name (tqdm progress from 20 queries); kwargs as for
+    :func:`localize`."""
+    results = localize_all(queries, localization_map, progress=len(queries) >= 20, **kwargs)
+    return {q.name: r for q, r in zip(queries, results)}
 
 
 def build_vlad_index(

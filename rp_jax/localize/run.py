@@ -31,7 +31,7 @@ from rp_jax.localize.map_description import (
     MapDescription,
     describe_map,
 )
-from rp_jax.localize.pipeline import localize
+from rp_jax.localize.pipeline import localize_all
 from rp_jax.localize.queries import query_images, read_intrinsics, read_poses
 from rp_jax.localize.submission import write_submission
 from rp_jax.sources import hloc
@@ -151,9 +151,10 @@ def localize_folder(
                            max_keypoints=max_keypoints)
     poses, per_query, errors = {}, {}, {}
     gt_names = hloc.NameIndex(gt or {})
-    for q in queries:
-        r = localize(q, lmap, num_retrieved=num_retrieved, ratio=match_ratio,
-                     reprojection_error=reprojection_error, min_inliers=min_inliers, seed=seed)
+    results = localize_all(queries, lmap, progress=progress, num_retrieved=num_retrieved,
+                           ratio=match_ratio, reprojection_error=reprojection_error,
+                           min_inliers=min_inliers, seed=seed)
+    for q, r in zip(queries, results):
         poses[q.name] = (r.pose.R, r.pose.t) if r.success else None
         per_query[q.name] = {"localized": bool(r.success), "matches": int(r.num_matches),
                              "inliers": int(r.pose.num_inliers), "retrieved": r.retrieved[:3]}

@@ -161,3 +161,25 @@ def test_summaries_localized_from_the_full_maps_table_as_on_their_own():
     other = localize(queries[0], full, num_retrieved=5, nearest=tables[0])
     np.testing.assert_array_equal(other.matched_points,
                                   localize(queries[0], full, num_retrieved=5).matched_points)
+
+
+def test_queries_localized_in_threads_are_those_localized_one_by_one():
+    from rp_jax.localize import localize_all
+
+    rng = np.random.default_rng(4)
+    mp, desc, obs_desc, db_desc = _synthetic_map(rng)
+    index, words = build_vlad_index(db_desc, num_words=16, seed=0)
+    lmap = LocalizationMap(mp, point_descriptors(mp, obs_desc), index,
+                           keep=prune_by_score(rng.random(mp.num_points), None, 0.6))
+    queries = [_query(rng, f"q{k}.jpg", mp.xyz, desc, words, C=[x, 0.2, 1.0], yaw=-2.0)[0]
+               for k, x in enumerate(np.linspace(-14, 14, 6))]
+    one = localize_all(queries, lmap, threads=1, num_retrieved=3)
+    for threads in (2, 3):
+        many = localize_all(queries, lmap, threads=threads, num_retrieved=3)
+        assert [r.success for r in many] == [r.success for r in one]
+        for a, b in zip(many, one):
+            np.testing.assert_array_equal(a.inlier_points, b.inlier_points)
+            np.testing.assert_array_equal(a.matched_points, b.matched_points)
+            if a.success:
+                np.testing.assert_array_equal(a.pose.R, b.pose.R)
+    assert sum(r.success for r in one) >= 4
