@@ -259,10 +259,6 @@ class NearestTable:
     beyond: np.ndarray
     num_candidates: int
 
-    @property
-    def nbytes(self) -> int:
-        return self.columns.nbytes + self.sq.nbytes + self.beyond.nbytes
-
 
 def nearest_table(query_descriptors: np.ndarray, point_descriptors: np.ndarray,
                   k: int = 16) -> NearestTable:

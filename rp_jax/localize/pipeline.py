@@ -244,19 +244,13 @@ def localize_all(queries: list[QueryImage], localization_map: LocalizationMap, *
     sampling included), so the results are those of one thread."""
     import concurrent.futures as cf
 
-    with tqdm(total=len(queries), desc="localize", leave=False, disable=not progress) as bar:
-        if threads <= 1 or len(queries) < 2:
-            out = []
-            for q in queries:
-                out.append(localize(q, localization_map, **kwargs))
-                bar.update()
-            return out
-        with cf.ThreadPoolExecutor(threads) as pool:
-            out = []
-            for r in pool.map(lambda q: localize(q, localization_map, **kwargs), queries):
-                out.append(r)
-                bar.update()
-            return out
+    out = []
+    with tqdm(total=len(queries), desc="localize", leave=False, disable=not progress) as bar, \
+            cf.ThreadPoolExecutor(max(1, int(threads))) as pool:
+        for r in pool.map(lambda q: localize(q, localization_map, **kwargs), queries):
+            out.append(r)
+            bar.update()
+    return out
 
 
 def localize_queries(
