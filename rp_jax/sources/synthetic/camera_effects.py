@@ -48,6 +48,9 @@ class Sensor:
       exposure_gain: the total gain reached by the longest exposure without amplification;
         above it the noise grows with the gain.
       max_exposure_s: the longest exposure (s), for motion blur; None: no blur modelled.
+      noise: the scale of the sensor's shot and read noise: 1 for every real camera here;
+        0 renders the same frame without noise (a counterfactual, e.g.
+        ``experiments.map_summarization.night_factors``).
     """
 
     name: str
@@ -55,6 +58,7 @@ class Sensor:
     max_gain: float
     exposure_gain: float
     max_exposure_s: float | None = None
+    noise: float = 1.0
 
     def exposure_s(self, gain: float) -> float:
         """The exposure time of a frame taken at ``gain`` (0 when no blur is modelled)."""
@@ -255,7 +259,8 @@ def expose(
     rel = max(gain / sensor.exposure_gain, 1.0)
     # sigma = sqrt(max(img, 0) * shot + read^2), then img += sigma * N(0, 1).
     sigma = cv2.max(img, 0.0)
-    cv2.addWeighted(sigma, _SHOT * rel, sigma, 0.0, (_READ * rel) ** 2, dst=sigma)
+    cv2.addWeighted(sigma, _SHOT * rel * sensor.noise**2, sigma, 0.0,
+                    (_READ * rel * sensor.noise) ** 2, dst=sigma)
     cv2.sqrt(sigma, dst=sigma)
     noise, sign = _gaussian_noise(img.shape, rng)
     cv2.multiply(sigma, noise, dst=sigma, scale=sign)
@@ -270,7 +275,8 @@ def expose(
         cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_REPLICATE,
     ).reshape(h, w, 3)
-    meta = {"gain": gain, "exposure_mean": mean, "noise_sigma_dark": float(_READ * rel)}
+    meta = {"gain": gain, "exposure_mean": mean,
+            "noise_sigma_dark": float(_READ * rel * sensor.noise)}
     if sensor.max_exposure_s is not None:
         meta["exposure_s"] = exposure_s
     return rgb, meta

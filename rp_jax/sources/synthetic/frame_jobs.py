@@ -158,7 +158,9 @@ def scene_of(spec: SceneSpec):
     return scene
 
 
-def render_frame(job: FrameJob):
+def render_frame(job: FrameJob, *, sensor=None):
+    """The frame of ``job``; ``sensor`` (a ``camera_effects.Sensor``) replaces the camera
+    ``job.sensor`` names (a counterfactual of the same camera, e.g. without noise)."""
     from rp_jax.sources.synthetic import camera_effects, photometry
     from rp_jax.sources.synthetic.render import render
 
@@ -169,7 +171,7 @@ def render_frame(job: FrameJob):
         seed=job.frame_seed,
         weather=job.weather,
         lighting=photometry.named(job.lighting),
-        sensor=camera_effects.sensor_named(job.sensor),
+        sensor=sensor if sensor is not None else camera_effects.sensor_named(job.sensor),
         velocity=None if job.velocity is None else np.asarray(job.velocity, np.float64),
     )
 

@@ -1,0 +1,320 @@
+"""Why the day map localizes no night query: the night camera's factors taken away in turn.
+
+In the RobotCar-Seasons-like world (``conditions``) the full map, built by overcast day,
+localizes no night or night-rain query, so the by-condition run's primary comparison (does
+knowing the condition keep what localizes at night?) cannot be read. The night is several
+physical things at once (``rp_jax.sources.synthetic``): street lamps and lit windows instead
+of the sky (``photometry.EN_13201``), and a camera that meets the dark with its longest
+exposure, during which the car moves on, and then with gain, which raises the noise
+(``camera_effects.GRASSHOPPER2_11HZ``). This experiment re-renders a sample of one world's
+night queries with one of those taken away at a time and asks the same full map again:
+
+- ``as_taken``: the preset's own frame, re-rendered (the layout's image before its JPEG);
+- ``still``: the car stands while the shutter is open (no motion blur; the same exposure,
+  gain and noise);
+- ``noiseless``: no sensor noise (the same exposure, gain and blur);
+- ``still_noiseless``: neither;
+- ``by_day``: the same view at the reference traversal's time of day and sky (overcast,
+  around noon): what the map was built from, the ceiling of the other rows.
+
+Each variant is a counterfactual of one frame, never a setting of the world: the run
+changes no layout and no result of ``conditions``. Every variant goes through the layout's
+JPEG, SIFT (as a query is described) and the full map's localization (VLAD retrieval,
+2D-3D matching, PnP-RANSAC, as ``world.localize_full_map``); the report gives, per
+condition and variant, the keypoints, the map points re-detected under the true pose (the
+oracles' evidence, ``oracles.redetection_hits``), how many frames re-detect at least as many
+points as a pose needs inliers, and the share localized within (0.5 m, 5°) and (5 m, 10°).
+
+::
+
+    python -m experiments.map_summarization.night_factors --size full --seed 0
+    python -m experiments.map_summarization.night_factors --size tiny --frames 4   # a check
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from experiments.map_summarization import conditions as cond_lib
+from experiments.map_summarization.pooling import THRESHOLD_KEYS, success
+from experiments.map_summarization.queries import describe_query
+from experiments.map_summarization.world import localization_kwargs
+from rp_jax.localize import LocalizationMap, localize_all
+from rp_jax.mapsum.oracles import redetection_hits
+from rp_jax.sources import robotcar_seasons as rcs
+
+NAME = "map_summarization_night_factors"
+FACTORS = {
+    "as_taken": "as taken (the preset's frame)",
+    "still": "the car still while the shutter is open (no motion blur)",
+    "noiseless": "no sensor noise",
+    "still_noiseless": "no motion blur and no sensor noise",
+    "by_day": "the same view by day (the reference traversal's time and sky)",
+}
+NIGHT_CONDITIONS = cond_lib.CONDITION_GROUPS["night"]
+
+
+@dataclasses.dataclass(frozen=True)
+class World:
+    """A synthetic RobotCar-Seasons-like layout and the preset's plan that rendered it."""
+
+    root: Path
+    seed: int
+    size: str
+    jobs: list  # the plan's FrameJobs
+
+
+def synthetic_world(root: Path) -> World:
+    """The layout at ``root`` with its preset's frames (the plan of the seed and size its
+    ``_synthetic/parameters.json`` records).
+
+    Raises:
+      LayoutError: not a layout the synthetic ``robotcar_seasons`` preset wrote.
+    """
+    from rp_jax.sources.synthetic import plan_robotcar_seasons
+
+    params_path = root / "_synthetic" / "parameters.json"
+    try:
+        params = json.loads(params_path.read_text())
+    except (OSError, ValueError) as e:
+        raise cond_lib.LayoutError(
+            f"{params_path}: unreadable ({e}); expected the parameters the synthetic "
+            "robotcar_seasons preset writes (its frames are re-rendered)") from None
+    if params.get("preset") != "robotcar_seasons":
+        raise cond_lib.LayoutError(f"{params_path}: preset {params.get('preset')!r}, expected "
+                                   "'robotcar_seasons'")
+    plan = plan_robotcar_seasons.plan(root, params["size"], int(params["seed"]))
+    return World(root, int(params["seed"]), params["size"], plan.jobs)
+
+
+def sample_jobs(world: World, condition: str, frames: int) -> list:
+    """``frames`` query frames of ``condition``, spread evenly over its traversal (every
+    camera in turn), in the plan's order."""
+    jobs = [j for j in world.jobs if j.image_path.parent.parent.name == condition]
+    if not jobs:
+        raise cond_lib.LayoutError(f"{world.root}: the preset renders no {condition} frame")
+    picks = np.unique(np.linspace(0, len(jobs) - 1, min(frames, len(jobs))).round().astype(int))
+    return [jobs[i] for i in picks]
+
+
+def by_day(job, condition: str):
+    """``job`` at the reference traversal's instant (the same time into the traversal)
+    and under its overcast sky."""
+    offset = job.when - rcs.traversal_start(condition)
+    when = rcs.traversal_start(rcs.REFERENCE_CONDITION) + offset
+    return dataclasses.replace(job, when=when.astimezone(job.when.tzinfo),
+                               weather="overcast")
+
+
+def render_variant(job, condition: str, factor: str) -> tuple[np.ndarray, dict]:
+    """The frame of ``job`` with ``factor`` (a key of ``FACTORS``) taken away, as the
+    layout's reader decodes it (after the layout's JPEG), and the camera's meta."""
+    from rp_jax.sources.synthetic import camera_effects, frame_jobs, write_layout
+
+    if factor not in FACTORS:
+        raise ValueError(f"unknown factor {factor!r}; expected one of {', '.join(FACTORS)}")
+    sensor = camera_effects.sensor_named(job.sensor)
+    if factor in ("still", "still_noiseless"):
+        job = dataclasses.replace(job, velocity=None)
+    if factor in ("noiseless", "still_noiseless"):
+        sensor = dataclasses.replace(sensor, noise=0.0)
+    if factor == "by_day":
+        job = by_day(job, condition)
+    frame = frame_jobs.render_frame(job, sensor=sensor)
+    encoded = write_layout.encode_image(np.asarray(frame.rgb), job.image_path.suffix)
+    bgr = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), frame.meta
+
+
+def measure(config, world_map, jobs: Sequence, condition: str, factor: str,
+            loc_kwargs: dict) -> dict:
+    """One variant of ``jobs``' frames against the full map: per frame its keypoints,
+    re-detected map points, localization outcome and the camera's gain and exposure."""
+    from rp_jax.sources import images
+
+    m = config.map
+    queries, meta, same = [], [], []
+    for job in jobs:
+        rgb, cam = render_variant(job, condition, factor)
+        if factor == "as_taken":  # the re-render is the layout's own image
+            same.append(bool(np.array_equal(rgb, images.read_rgb(job.image_path))))
+        camera = dataclasses.make_dataclass("Cam", ["K", "width", "height"])(
+            job.K, job.width, job.height)
+        queries.append(describe_query(job.image_path.name, rgb, camera, (job.R, job.t),
+                                      job.when, job.image_path, m.max_keypoints,
+                                      world_map.vocabulary))
+        meta.append(cam)
+    mp = world_map.map_points
+    hits = redetection_hits(
+        mp, world_map.point_descriptors,
+        [(q["query"].xy, q["query"].descriptors, q["query"].K, *q["pose"], q["size"])
+         for q in queries],
+        radius_px=m.oracle_radius_px, ratio=m.match_ratio)
+    lmap = LocalizationMap(mp, world_map.point_descriptors, world_map.index)
+    results = localize_all([q["query"] for q in queries], lmap, **loc_kwargs)
+    outcomes = [success(q["pose"], (r.pose.R, r.pose.t) if r.success else None)
+                for q, r in zip(queries, results)]
+    return {
+        "keypoints": [int(len(q["query"].xy)) for q in queries],
+        "redetected": [int(len(h)) for h in hits],
+        "localized": {k: [bool(o[i]) for o in outcomes] for i, k in enumerate(THRESHOLD_KEYS)},
+        "gain": [float(c["gain"]) for c in meta],
+        "exposure_ms": [1000.0 * float(c.get("exposure_s", 0.0)) for c in meta],
+        **({"equals_layout_image": same} if factor == "as_taken" else {}),
+    }
+
+
+def summary(per_frame: dict, min_inliers: int) -> dict:
+    """Medians, means and shares of ``measure``'s per-frame lists."""
+    red = np.asarray(per_frame["redetected"])
+    return {
+        "frames": int(len(red)),
+        "keypoints_median": float(np.median(per_frame["keypoints"])),
+        "redetected_mean": float(red.mean()),
+        "redetected_median": float(np.median(red)),
+        "redetected_max": int(red.max()),
+        "enough_redetected": float(np.mean(red >= min_inliers)),
+        "localized": {k: float(np.mean(v)) for k, v in per_frame["localized"].items()},
+        "gain_median": float(np.median(per_frame["gain"])),
+        "exposure_ms_median": float(np.median(per_frame["exposure_ms"])),
+    }
+
+
+def rendered_conditions(world: World) -> list[str]:
+    """The query conditions the preset renders, in the dataset's order."""
+    present = {j.image_path.parent.parent.name for j in world.jobs}
+    return [c for c in rcs.QUERY_CONDITIONS if c in present]
+
+
+def run(config, workdir: Path, *, seed: int, frames: int,
+        conditions: Sequence[str] | None = None, progress: bool = True) -> dict:
+    """Every factor on ``frames`` frames of each of ``conditions`` (default: the night
+    conditions the world's size renders) of world ``seed``; writes ``night_factors.json``
+    and ``night_factors.md`` in ``workdir``."""
+    from experiments import provenance
+    from rp_jax.progress import bar as tqdm
+
+    root = cond_lib.ensure_layout(config, seed, progress=progress)
+    world = synthetic_world(root)
+    if conditions is None:
+        conditions = [c for c in NIGHT_CONDITIONS if c in rendered_conditions(world)]
+    world_map = cond_lib.build_map(config, root, {}, seed, progress=progress)
+    loc_kwargs = localization_kwargs(config, seed)
+    results: dict = {}
+    steps = [(c, f) for c in conditions for f in FACTORS]
+    for c, f in tqdm(steps, desc="night factors", disable=not progress):
+        jobs = sample_jobs(world, c, frames)
+        per_frame = measure(config, world_map, jobs, c, f, loc_kwargs)
+        results.setdefault(c, {})[f] = {**summary(per_frame, config.map.min_inliers),
+                                         "per_frame": per_frame}
+    out = {
+        "world": {"seed": seed, "size": world.size, "root": str(root)},
+        "frames_per_condition": frames,
+        "min_inliers": int(config.map.min_inliers),
+        "factors": FACTORS,
+        "results": results,
+        "provenance": provenance.gather(),
+    }
+    workdir.mkdir(parents=True, exist_ok=True)
+    _write_atomic(workdir / "night_factors.json", json.dumps(out, indent=1) + "\n")
+    _write_atomic(workdir / "night_factors.md", markdown(out))
+    return out
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def tables_markdown(out: dict) -> str:
+    """One table per condition: a row per factor."""
+    lines = []
+    need = out["min_inliers"]
+    for c, by_factor in out["results"].items():
+        n = next(iter(by_factor.values()))["frames"]
+        lines += [f"**{c}** ({n} frames of world seed {out['world']['seed']}, "
+                  f"size {out['world']['size']})", "",
+                  "| frame | keypoints | re-detected map points: mean / median / max | "
+                  f"frames re-detecting >= {need} | localized (0.5 m, 5 deg) | "
+                  "localized (5 m, 10 deg) | gain | exposure |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for f, s in by_factor.items():
+            loc = s["localized"]
+            lines.append(
+                f"| {FACTORS[f]} | {s['keypoints_median']:.0f} | "
+                f"{s['redetected_mean']:.1f} / {s['redetected_median']:.0f} / "
+                f"{s['redetected_max']} | {100 * s['enough_redetected']:.0f} % | "
+                f"{100 * loc['0.5m_5deg']:.0f} % | {100 * loc['5m_10deg']:.0f} % | "
+                f"{s['gain_median']:.0f} | {s['exposure_ms_median']:.1f} ms |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def markdown(out: dict) -> str:
+    """The report: what was varied, then the tables."""
+    return "\n".join([
+        "# Night queries against the day map, one factor taken away at a time", "",
+        "Each frame is a night query of the by-condition world re-rendered with one physical "
+        "factor of the night capture removed, described with SIFT as a query is and "
+        "localized on the full day-built map; keypoints, gain and exposure are medians; "
+        f"a pose needs {out['min_inliers']} PnP inliers. Gain: the total scale from scene "
+        "radiance to the image, 2 for a sunny noon frame.", "",
+        tables_markdown(out),
+        f"Command: `{out['provenance']['command']}`; {out['provenance']['date']}; "
+        f"{out['provenance']['machine']}.", ""])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m experiments.map_summarization.night_factors``."""
+    import sys
+
+    from experiments import cli
+
+    def add_flags(parser) -> None:
+        parser.add_argument("--seed", type=int, default=0, help="world seed (default 0)")
+        parser.add_argument("--frames", type=int, default=30,
+                            help="frames per condition, spread over its traversal (default 30)")
+        parser.add_argument("--conditions", default=None, metavar="C,C,...",
+                            help="query conditions (default: night,night-rain, those the "
+                            "world's size renders)")
+
+    config, workdir, args = cli.parse_flags(argv, NAME, cond_lib.get_config, __doc__,
+                                            default_size="full", add_flags=add_flags,
+                                            module="map_summarization.night_factors")
+    prog = "python -m experiments.map_summarization.night_factors"
+    wanted = (None if args.conditions is None
+              else [c.strip() for c in args.conditions.split(",") if c.strip()])
+    if wanted is not None and (not wanted or any(c not in rcs.QUERY_CONDITIONS for c in wanted)):
+        print(f"{prog}: error: --conditions {args.conditions!r}: expected query conditions "
+              f"of {rcs.DATASET} ({', '.join(rcs.QUERY_CONDITIONS)})", file=sys.stderr)
+        return 2
+    if args.seed < 0 or args.frames < 1:
+        print(f"{prog}: error: --seed must be >= 0 and --frames >= 1 (got {args.seed}, "
+              f"{args.frames})", file=sys.stderr)
+        return 2
+    from rp_jax import platform
+    from rp_jax import progress as progress_lib
+
+    if args.quiet:
+        progress_lib.set_quiet()
+    platform.configure_cpu()
+    try:
+        out = run(config, workdir, seed=args.seed, frames=args.frames, conditions=wanted,
+                  progress=not args.quiet)
+    except cond_lib.LayoutError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {workdir}/night_factors.json and night_factors.md")
+    print(tables_markdown(out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
