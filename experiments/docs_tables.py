@@ -72,6 +72,8 @@ MAPSUM_SCORER_VALIDATION = RESULTS / "map_summarization_scorer_validation"
 MAPSUM_SPREAD = RESULTS / "map_summarization_spread"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
+# Its night queries re-rendered with one factor of the night capture taken away.
+NIGHT_FACTORS = RESULTS / "map_summarization_conditions" / "night_factors.json"
 SUITE_TIMES = RESULTS / "suite_times.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
@@ -445,6 +447,16 @@ def map_summarization_conditions_tables(metrics: Mapping | None,
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
+def night_factors_tables(out: Mapping | None, path: Path = NIGHT_FACTORS) -> str:
+    """The night queries with one factor taken away (``night_factors.tables_markdown``)."""
+    if out is None:
+        return f"_No night-factor result is committed yet (`{path.as_posix()}`)._\n"
+    from experiments.map_summarization import night_factors
+
+    body = night_factors.tables_markdown(out).rstrip("\n") + "\n"
+    return body + f"\nRun: {run_caption(out)}.\n"
+
+
 def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> str:
     """The same default command run twice (``report.spread_markdown``), with both captions."""
     if earlier is None or later is None:
@@ -625,6 +637,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),
     "map_summarization_conditions": lambda root: map_summarization_conditions_tables(
         read_json(root / MAPSUM_CONDITIONS)),
+    "map_summarization_night_factors": lambda root: night_factors_tables(
+        read_json(root / NIGHT_FACTORS)),
     "map_summarization_spread": lambda root: map_summarization_spread(
         read_json(root / MAPSUM_SPREAD / "earlier.json"),
         read_json(root / MAPSUM_SPREAD / "later.json")),

@@ -77,8 +77,6 @@ def synthetic_world(root: Path) -> World:
     Raises:
       LayoutError: not a layout the synthetic ``robotcar_seasons`` preset wrote.
     """
-    from rp_jax.sources.synthetic import plan_robotcar_seasons
-
     params_path = root / "_synthetic" / "parameters.json"
     try:
         params = json.loads(params_path.read_text())
@@ -89,16 +87,33 @@ def synthetic_world(root: Path) -> World:
     if params.get("preset") != "robotcar_seasons":
         raise cond_lib.LayoutError(f"{params_path}: preset {params.get('preset')!r}, expected "
                                    "'robotcar_seasons'")
-    plan = plan_robotcar_seasons.plan(root, params["size"], int(params["seed"]))
-    return World(root, int(params["seed"]), params["size"], plan.jobs)
+    return planned_world(root, params["size"], int(params["seed"]))
+
+
+def planned_world(root: Path, size: str, seed: int) -> World:
+    """The ``robotcar_seasons`` preset's frames of ``size`` and ``seed``, as if written to
+    ``root`` (nothing is rendered or written)."""
+    from rp_jax.sources.synthetic import plan_robotcar_seasons
+
+    return World(root, seed, size, plan_robotcar_seasons.plan(root, size, seed).jobs)
+
+
+def condition_jobs(world: World, condition: str) -> list:
+    """Every frame of ``condition``, in the plan's order.
+
+    Raises:
+      LayoutError: the preset renders no frame of ``condition`` at the world's size.
+    """
+    jobs = [j for j in world.jobs if j.image_path.parent.parent.name == condition]
+    if not jobs:
+        raise cond_lib.LayoutError(f"{world.root}: the preset renders no {condition} frame")
+    return jobs
 
 
 def sample_jobs(world: World, condition: str, frames: int) -> list:
     """``frames`` query frames of ``condition``, spread evenly over its traversal (every
     camera in turn), in the plan's order."""
-    jobs = [j for j in world.jobs if j.image_path.parent.parent.name == condition]
-    if not jobs:
-        raise cond_lib.LayoutError(f"{world.root}: the preset renders no {condition} frame")
+    jobs = condition_jobs(world, condition)
     picks = np.unique(np.linspace(0, len(jobs) - 1, min(frames, len(jobs))).round().astype(int))
     return [jobs[i] for i in picks]
 
@@ -112,24 +127,91 @@ def by_day(job, condition: str):
                                weather="overcast")
 
 
-def render_variant(job, condition: str, factor: str) -> tuple[np.ndarray, dict]:
-    """The frame of ``job`` with ``factor`` (a key of ``FACTORS``) taken away, as the
-    layout's reader decodes it (after the layout's JPEG), and the camera's meta."""
-    from rp_jax.sources.synthetic import camera_effects, frame_jobs, write_layout
-
+def counterfactual_job(job, condition: str, factor: str):
+    """``job`` (a frame of ``condition``) with ``factor`` (a key of ``FACTORS``) taken away."""
     if factor not in FACTORS:
         raise ValueError(f"unknown factor {factor!r}; expected one of {', '.join(FACTORS)}")
-    sensor = camera_effects.sensor_named(job.sensor)
     if factor in ("still", "still_noiseless"):
         job = dataclasses.replace(job, velocity=None)
     if factor in ("noiseless", "still_noiseless"):
-        sensor = dataclasses.replace(sensor, noise=0.0)
+        job = dataclasses.replace(job, sensor_noise=0.0)
     if factor == "by_day":
         job = by_day(job, condition)
-    frame = frame_jobs.render_frame(job, sensor=sensor)
+    return job
+
+
+def render_variant(job, condition: str, factor: str) -> tuple[np.ndarray, dict]:
+    """The frame of ``job`` with ``factor`` taken away (``counterfactual_job``), as the
+    layout's reader decodes it (after the layout's JPEG), and the camera's meta."""
+    from rp_jax.sources.synthetic import frame_jobs, write_layout
+
+    job = counterfactual_job(job, condition, factor)
+    frame = frame_jobs.render_frame(job)
     encoded = write_layout.encode_image(np.asarray(frame.rgb), job.image_path.suffix)
     bgr = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), frame.meta
+
+
+COUNTERFACTUAL_JSON = Path("_synthetic") / "counterfactual.json"
+GENERATION_JSON = Path("_synthetic") / "generation.json"
+
+
+def write_counterfactual_layout(src: Path, dst: Path, factor: str, conditions: Sequence[str],
+                                *, workers: int = 1, progress: bool = True) -> int:
+    """A copy of the synthetic layout ``src`` at ``dst`` in which every query frame of
+    ``conditions`` is rendered again with ``factor`` taken away (its image and
+    segmentation); every other file is the source's (a hard link where the file system
+    allows, else a copy). ``_synthetic/counterfactual.json`` says what was changed; the
+    source's generation marker, written last, marks the copy finished, so that the
+    experiments read it as they read the source. Resumes where a run stopped.
+
+    Returns:
+      The number of frames rendered.
+
+    Raises:
+      ValueError: ``dst`` holds files that are not a counterfactual copy of this one.
+    """
+    import os
+    import shutil
+
+    from rp_jax.sources.synthetic import frame_jobs, write_layout
+
+    world = synthetic_world(src)
+    record = {"factor": factor, "description": FACTORS.get(factor), "conditions": list(conditions),
+              "source": str(src.absolute())}
+    mark = dst / COUNTERFACTUAL_JSON
+    if mark.is_file():
+        if json.loads(mark.read_text()) != record:
+            raise ValueError(f"{mark}: another counterfactual copy ({mark.read_text().strip()}); "
+                             f"expected {record}: choose another folder")
+    elif dst.exists() and any(dst.iterdir()):
+        raise ValueError(f"{dst}: not empty and not a counterfactual copy (no "
+                         f"{COUNTERFACTUAL_JSON}); choose another folder")
+    jobs = []
+    for c in conditions:
+        for job in condition_jobs(world, c):
+            rel = job.image_path.relative_to(src)
+            seg = (dst / job.segmentation_path.relative_to(src)
+                   if job.segmentation_path is not None else None)
+            jobs.append(dataclasses.replace(counterfactual_job(job, c, factor),
+                                            image_path=dst / rel, segmentation_path=seg,
+                                            keypoints_path=None))
+    rendered = {j.image_path for j in jobs} | {j.segmentation_path for j in jobs}
+    dst.mkdir(parents=True, exist_ok=True)
+    write_layout.write_bytes_atomic(mark, (json.dumps(record, indent=1) + "\n").encode())
+    for path in sorted(p for p in src.rglob("*") if p.is_file()):
+        rel = path.relative_to(src)
+        out = dst / rel
+        if rel in (GENERATION_JSON, COUNTERFACTUAL_JSON) or out in rendered or out.exists():
+            continue
+        out.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            os.link(path, out)
+        except OSError:
+            shutil.copy2(path, out)
+    count = frame_jobs.run_jobs(jobs, workers=workers, progress=progress)
+    shutil.copy2(src / GENERATION_JSON, dst / GENERATION_JSON)
+    return count
 
 
 def measure(config, world_map, jobs: Sequence, condition: str, factor: str,
@@ -284,6 +366,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.add_argument("--conditions", default=None, metavar="C,C,...",
                             help="query conditions (default: night,night-rain, those the "
                             "world's size renders)")
+        parser.add_argument("--write-layouts", type=Path, default=None, metavar="DIR",
+                            help="instead of measuring: write a copy of each world of --seeds "
+                            "under DIR/synthetic/ whose frames of --conditions are rendered "
+                            "with --factor taken away (run the by-condition experiment on "
+                            "them with --data-dir DIR/tensorflow_datasets)")
+        parser.add_argument("--factor", default="still_noiseless", choices=list(FACTORS),
+                            help="with --write-layouts: what the copies take away "
+                            "(default still_noiseless)")
+        parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
+                            help="with --write-layouts: the worlds (default: the by-condition "
+                            "run's world seeds and its outcome scorer's label worlds)")
 
     config, workdir, args = cli.parse_flags(argv, NAME, cond_lib.get_config, __doc__,
                                             default_size="full", add_flags=add_flags,
@@ -305,6 +398,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.quiet:
         progress_lib.set_quiet()
     platform.configure_cpu()
+    if args.write_layouts is not None:
+        return _write_layouts(config, args, wanted, prog)
     try:
         out = run(config, workdir, seed=args.seed, frames=args.frames, conditions=wanted,
                   progress=not args.quiet)
@@ -313,6 +408,35 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(f"wrote {workdir}/night_factors.json and night_factors.md")
     print(tables_markdown(out))
+    return 0
+
+
+def _write_layouts(config, args, wanted: Sequence[str] | None, prog: str) -> int:
+    """``--write-layouts``: a counterfactual copy of each world of the seeds."""
+    import os
+    import sys
+
+    from rp_jax.datasets import builder as builder_lib
+
+    m = config.map
+    seeds = args.seeds if args.seeds is not None else (*m.seeds, *m.outcome_seeds)
+    data_dir = args.write_layouts.absolute() / "tensorflow_datasets"
+    try:
+        for seed in seeds:
+            src = cond_lib.ensure_layout(config, seed, progress=not args.quiet)
+            world = synthetic_world(src)
+            conditions = wanted or [c for c in NIGHT_CONDITIONS
+                                    if c in rendered_conditions(world)]
+            dst = builder_lib.synthetic_root(data_dir, "robotcar_seasons", m.synthetic_size, seed)
+            n = write_counterfactual_layout(src, dst, args.factor, conditions,
+                                            workers=int(m.workers) or os.cpu_count() or 1,
+                                            progress=not args.quiet)
+            print(f"{dst}: {', '.join(conditions)} {args.factor} ({n} frames rendered)")
+    except (cond_lib.LayoutError, ValueError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    print(f"then: python -m experiments.map_summarization.conditions --size "
+          f"{m.synthetic_size} --data-dir {data_dir}")
     return 0
 
 

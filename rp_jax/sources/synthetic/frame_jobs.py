@@ -95,6 +95,8 @@ class FrameJob:
       lighting: the street lighting's name (``photometry.named``; None: the default).
       sensor: the camera's name (``camera_effects.sensor_named``; None: the webcam).
       velocity: the camera's world velocity (m/s) while it exposes, or None (still).
+      sensor_noise: the scale of the camera's noise (``camera_effects.Sensor.noise``): 1
+        for every preset; 0 renders the frame without it (a counterfactual).
     """
 
     scene: SceneSpec
@@ -114,6 +116,7 @@ class FrameJob:
     lighting: str | None = None
     sensor: str | None = None
     velocity: tuple[float, float, float] | None = None
+    sensor_noise: float = 1.0
 
     @property
     def outputs(self) -> list[Path]:
@@ -158,12 +161,13 @@ def scene_of(spec: SceneSpec):
     return scene
 
 
-def render_frame(job: FrameJob, *, sensor=None):
-    """The frame of ``job``; ``sensor`` (a ``camera_effects.Sensor``) replaces the camera
-    ``job.sensor`` names (a counterfactual of the same camera, e.g. without noise)."""
+def render_frame(job: FrameJob):
     from rp_jax.sources.synthetic import camera_effects, photometry
     from rp_jax.sources.synthetic.render import render
 
+    sensor = camera_effects.sensor_named(job.sensor)
+    if job.sensor_noise != 1.0:
+        sensor = dataclasses.replace(sensor, noise=job.sensor_noise)
     return render(
         scene_of(job.scene),
         _make_view(job),
@@ -171,7 +175,7 @@ def render_frame(job: FrameJob, *, sensor=None):
         seed=job.frame_seed,
         weather=job.weather,
         lighting=photometry.named(job.lighting),
-        sensor=sensor if sensor is not None else camera_effects.sensor_named(job.sensor),
+        sensor=sensor,
         velocity=None if job.velocity is None else np.asarray(job.velocity, np.float64),
     )
 

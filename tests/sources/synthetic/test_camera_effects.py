@@ -1,5 +1,7 @@
 """A camera's exposure range, its noise and motion blur (``camera_effects``)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -61,3 +63,22 @@ def test_motion_blur_smears_an_edge_along_the_motion_and_keeps_the_light():
     still = np.zeros_like(motion)
     same = img[..., 0:1].repeat(3, -1)
     assert ce.motion_blur(same, still, 1.0) is same
+
+
+def test_a_noiseless_sensor_is_the_same_camera_without_its_noise():
+    g = ce.GRASSHOPPER2_11HZ
+    quiet = dataclasses.replace(g, noise=0.0)
+    dark = 2e-5  # a night scene: long exposure and high gain, where the noise is strong
+    noisy_a, meta = ce.expose(_radiance(dark), K, np.random.default_rng(1), g)
+    noisy_b, _ = ce.expose(_radiance(dark), K, np.random.default_rng(2), g)
+    same_a, _ = ce.expose(_radiance(dark), K, np.random.default_rng(1),
+                          dataclasses.replace(g, noise=1.0))
+    np.testing.assert_array_equal(noisy_a, same_a)  # noise 1 is the camera as it is
+    assert not np.array_equal(noisy_a, noisy_b)
+    clean_a, clean_meta = ce.expose(_radiance(dark), K, np.random.default_rng(1), quiet)
+    clean_b, _ = ce.expose(_radiance(dark), K, np.random.default_rng(2), quiet)
+    np.testing.assert_array_equal(clean_a, clean_b)  # nothing left that the noise draws
+    assert clean_meta["gain"] == meta["gain"] and clean_meta["noise_sigma_dark"] == 0.0
+    # The same exposure: the noiseless frame is the noisy one's mean, without its spread.
+    assert abs(float(clean_a.mean()) - float(noisy_a.mean())) < 0.1 * float(noisy_a.mean())
+    assert np.std(clean_a.astype(float) - noisy_a) > 1.0
