@@ -102,3 +102,38 @@ def test_bad_flags_are_refused_before_any_work(tmp_path, capsys, flags, message)
                     "--data-dir", str(tmp_path / "data"), *flags]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "w").exists() and not (tmp_path / "data").exists()
+
+
+def test_a_counterfactual_copy_changes_the_night_frames_and_nothing_else(tiny, tmp_path):
+    _, out = tiny
+    src = Path(out["world"]["root"])
+    dst = tmp_path / "copy"
+    n = nf.write_counterfactual_layout(src, dst, "still_noiseless", ["night"], progress=False)
+    night = {p.relative_to(src) for p in (src / "images" / "night").rglob("*.jpg")}
+    assert n == len(night) > 0
+    for path in (p for p in src.rglob("*") if p.is_file()):
+        rel = path.relative_to(src)
+        copy = dst / rel
+        assert copy.is_file(), rel
+        if rel in night:
+            assert copy.read_bytes() != path.read_bytes()
+        elif rel.parts[0] == "segmentation" and rel.parts[1] == "night":
+            pass  # rendered again: the same categories (nothing moves but the camera's noise)
+        else:
+            assert copy.read_bytes() == path.read_bytes(), rel
+    record = json.loads((dst / nf.COUNTERFACTUAL_JSON).read_text())
+    assert record["factor"] == "still_noiseless" and record["conditions"] == ["night"]
+    # The copy reads as the layout it copies: the same captures and poses.
+    assert ([c.image_path.relative_to(dst) for c in rcs.read_captures(dst, ["night"])]
+            == [c.image_path.relative_to(src) for c in rcs.read_captures(src, ["night"])])
+    # A second run finds it finished; another factor or a foreign folder is refused.
+    assert nf.write_counterfactual_layout(src, dst, "still_noiseless", ["night"],
+                                          progress=False) == 0
+    with pytest.raises(ValueError, match="another counterfactual copy"):
+        nf.write_counterfactual_layout(src, dst, "still", ["night"], progress=False)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep me")
+    with pytest.raises(ValueError, match="not a counterfactual copy"):
+        nf.write_counterfactual_layout(src, tmp_path / "mine", "still", ["night"],
+                                       progress=False)
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
