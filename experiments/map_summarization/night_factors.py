@@ -296,7 +296,7 @@ def run(config, workdir: Path, *, seed: int, frames: int,
         results.setdefault(c, {})[f] = {**summary(per_frame, config.map.min_inliers),
                                          "per_frame": per_frame}
     out = {
-        "world": {"seed": seed, "size": world.size, "root": str(root)},
+        "world": {"seed": seed, "size": world.size, "root": _shown(root)},
         "frames_per_condition": frames,
         "min_inliers": int(config.map.min_inliers),
         "factors": FACTORS,
@@ -307,6 +307,15 @@ def run(config, workdir: Path, *, seed: int, frames: int,
     _write_atomic(workdir / "night_factors.json", json.dumps(out, indent=1) + "\n")
     _write_atomic(workdir / "night_factors.md", markdown(out))
     return out
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the working directory where it lies below it (a result file
+    names no one's home folder), else as it is."""
+    try:
+        return str(Path(path).absolute().relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
 
 
 def _write_atomic(path: Path, text: str) -> None:
