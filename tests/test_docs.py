@@ -358,3 +358,21 @@ def test_by_source_table_averages_each_group_without_the_own_hour():
     assert "| 0 | at night | 0.000 | 0.000 | 0.200 | 0.100 |" in text
     with pytest.raises(ValueError, match="not a whole-day run"):
         docs_tables.sec4a_by_source_table([(0, {**metrics, "by_source_slot": None})])
+
+
+def test_night_factors_table_has_a_row_per_factor_and_the_run():
+    per = {"frames": 2, "keypoints_median": 300.0, "redetected_mean": 12.5,
+           "redetected_median": 9.0, "redetected_max": 40, "enough_redetected": 0.5,
+           "localized": {"0.25m_2deg": 0.0, "0.5m_5deg": 0.5, "5m_10deg": 0.5},
+           "gain_median": 3214.0, "exposure_ms_median": 90.1}
+    out = {"world": {"seed": 3, "size": "full"}, "min_inliers": 12,
+           "results": {"night-rain": {"as_taken": per, "by_day": dict(per, gain_median=6.0)}},
+           "provenance": {"command": "python -m x", "date": "2030-01-01 10:00 UTC",
+                          "machine": "AMD EPYC", "code": "git 0123456789abcdef"}}
+    text = docs_tables.night_factors_tables(out)
+    assert "**night-rain** (2 frames of world seed 3, size full)" in text
+    assert ("| as taken (the preset's frame) | 300 | 12.5 / 9 / 40 | 50 % | 50 % | 50 % | 3214 "
+            "| 90.1 ms |") in text
+    assert "| the same view by day (the reference traversal's time and sky) |" in text
+    assert "frames re-detecting >= 12" in text and "`python -m x`; 2030-01-01 10:00 UTC" in text
+    assert "No night-factor result" in docs_tables.night_factors_tables(None)
