@@ -116,6 +116,8 @@ PRIMARY_GROUP = "night"
 PRIMARY_RATIOS = ("0.8", "0.9")
 PRIMARY_THRESHOLDS = ("0.5m_5deg", "5m_10deg")
 REFERENCE_MODEL_DIR = "_synthetic/reference_model"
+# Written by ``night_factors --write-layouts`` into a world's copy whose frames it changed.
+COUNTERFACTUAL_JSON = "_synthetic/counterfactual.json"
 V2_QUERIES = "_evaluation/robotcar_v2_queries.txt"
 NAME = "map_summarization_conditions"
 
@@ -211,6 +213,16 @@ def ensure_layout(config, seed: int, *, progress: bool = True) -> Path:
         raise LayoutError(f"{root}: no {V2_QUERIES} (every query's ground-truth pose, as the "
                           "synthetic world writes it; the release withholds them)")
     return root
+
+
+def counterfactual_of(root: Path) -> dict | None:
+    """What a counterfactual copy of a world changed (``night_factors --write-layouts``:
+    its ``_synthetic/counterfactual.json``), None for a world as rendered."""
+    path = root / COUNTERFACTUAL_JSON
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    return {k: record.get(k) for k in ("factor", "description", "conditions")}
 
 
 def capture_time(path: Path, name: str):
@@ -506,6 +518,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         "min_inliers": int(m.min_inliers),
         "maps": {str(s["seed"]): s["map"] for s in per_seed},
         "dataset": {"map": [s["root"] for s in per_seed]},
+        "counterfactual": {str(s["seed"]): counterfactual_of(Path(s["root"])) for s in per_seed
+                           if counterfactual_of(Path(s["root"])) is not None} or None,
         "rp_day": None if rp is None else {**rp_counts, "schedule": rp.schedule.name,
                                             "timestamps": rp.schedule.num_timestamps},
         "outcome_scorers": None if scorers is None else {
@@ -707,6 +721,17 @@ def _scorer_lines(summary: Mapping | None) -> list[str]:
             f"{summary['positives']} PnP inliers.", ""]
 
 
+def _counterfactual_lines(counterfactual: Mapping | None) -> list[str]:
+    if not counterfactual:
+        return []
+    kinds = sorted({(r["description"], tuple(r["conditions"])) for r in counterfactual.values()})
+    what = "; ".join(f"{', '.join(c)}: {d}" for d, c in kinds)
+    return [f"**Counterfactual worlds** (`night_factors --write-layouts`): the frames of world "
+            f"seeds {', '.join(counterfactual)} were rendered with a factor of the capture "
+            f"taken away ({what}); every other file is the world's own. These are not the "
+            "worlds as their physics renders them.", ""]
+
+
 def markdown(metrics: Mapping) -> str:
     """``report.md``: every sentence computed from ``metrics``."""
     prov = metrics.get("provenance", {})
@@ -719,6 +744,7 @@ def markdown(metrics: Mapping) -> str:
         "experiment and, where the run has them, the outcome scorer at the query's time and "
         "its time-agnostic twin; a query's *date* is its traversal (its condition).",
         "",
+        *_counterfactual_lines(metrics.get("counterfactual")),
         *_scorer_lines(metrics.get("outcome_scorers")),
         tables_markdown(metrics),
         f"Command: `{prov.get('command', '')}`; code {prov.get('code', '')}; "

@@ -349,3 +349,19 @@ def test_a_label_world_in_a_process_of_its_own_gives_the_same_labels(tiny, tmp_p
         assert sorted(ours.files) == sorted(theirs.files)
         for k in ours.files:
             np.testing.assert_array_equal(ours[k], theirs[k], err_msg=k)
+
+
+def test_a_counterfactual_world_is_named_as_one_in_the_report(tmp_path):
+    assert mc.counterfactual_of(tmp_path) is None
+    (tmp_path / "_synthetic").mkdir()
+    (tmp_path / mc.COUNTERFACTUAL_JSON).write_text(json.dumps({
+        "factor": "still_noiseless", "description": "no motion blur and no sensor noise",
+        "conditions": ["night", "night-rain"], "source": "/somewhere/robotcar_seasons"}))
+    record = mc.counterfactual_of(tmp_path)
+    assert record == {"factor": "still_noiseless",
+                      "description": "no motion blur and no sensor noise",
+                      "conditions": ["night", "night-rain"]}
+    lines = "\n".join(mc._counterfactual_lines({"0": record, "3": record}))
+    assert "**Counterfactual worlds**" in lines and "world seeds 0, 3" in lines
+    assert "night, night-rain: no motion blur and no sensor noise" in lines
+    assert mc._counterfactual_lines(None) == []
