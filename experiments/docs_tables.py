@@ -74,6 +74,9 @@ MAPSUM_SPREAD = RESULTS / "map_summarization_spread"
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
 # Its night queries re-rendered with one factor of the night capture taken away.
 NIGHT_FACTORS = RESULTS / "map_summarization_conditions" / "night_factors.json"
+# The by-condition run on copies of its worlds whose nights are rendered without the motion
+# blur and the sensor noise (``night_factors --write-layouts``): a counterfactual.
+NIGHTS_CF = RESULTS / "map_summarization_conditions_nights_cf" / "metrics.json"
 SUITE_TIMES = RESULTS / "suite_times.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
@@ -457,6 +460,19 @@ def night_factors_tables(out: Mapping | None, path: Path = NIGHT_FACTORS) -> str
     return body + f"\nRun: {run_caption(out)}.\n"
 
 
+def nights_counterfactual_tables(metrics: Mapping | None, path: Path = NIGHTS_CF) -> str:
+    """The by-condition run on counterfactual nights: its primary comparison, the full map
+    by condition, the night group and the scorers' contrasts at night
+    (``conditions.tables_markdown`` of the night group)."""
+    if metrics is None:
+        return f"_No counterfactual by-condition result is committed yet (`{path.as_posix()}`)._\n"
+    from experiments.map_summarization import conditions
+
+    night = {k: v for k, v in metrics["groups"].items() if k == conditions.PRIMARY_GROUP}
+    body = conditions.tables_markdown(dict(metrics, groups=night)).rstrip("\n") + "\n"
+    return body + f"\nRun: {run_caption(metrics)}.\n"
+
+
 def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> str:
     """The same default command run twice (``report.spread_markdown``), with both captions."""
     if earlier is None or later is None:
@@ -639,6 +655,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / MAPSUM_CONDITIONS)),
     "map_summarization_night_factors": lambda root: night_factors_tables(
         read_json(root / NIGHT_FACTORS)),
+    "map_summarization_nights_counterfactual": lambda root: nights_counterfactual_tables(
+        read_json(root / NIGHTS_CF)),
     "map_summarization_spread": lambda root: map_summarization_spread(
         read_json(root / MAPSUM_SPREAD / "earlier.json"),
         read_json(root / MAPSUM_SPREAD / "later.json")),

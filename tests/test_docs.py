@@ -376,3 +376,14 @@ def test_night_factors_table_has_a_row_per_factor_and_the_run():
     assert "| the same view by day (the reference traversal's time and sky) |" in text
     assert "frames re-detecting >= 12" in text and "`python -m x`; 2030-01-01 10:00 UTC" in text
     assert "No night-factor result" in docs_tables.night_factors_tables(None)
+
+
+def test_the_counterfactual_nights_block_shows_the_night_group_only():
+    metrics = docs_tables.read_json(ROOT / docs_tables.MAPSUM_CONDITIONS)
+    text = docs_tables.nights_counterfactual_tables(metrics)
+    assert "### Primary comparison: does knowing the condition help at night?" in text
+    assert "### Night (night, night-rain)" in text and "### Full map by condition" in text
+    assert "### Twilight" not in text and "### Day (" not in text
+    assert "night, 90 %, (5 m, 10 deg)" in text and "twilight, 90 %" not in text
+    assert text.rstrip().endswith(".") and "Run: `python -m experiments.map_summarization" in text
+    assert "No counterfactual by-condition result" in docs_tables.nights_counterfactual_tables(None)
