@@ -566,7 +566,7 @@ def _gap_cell(group: Mapping, r: str, th: str) -> str:
     return f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}]"
 
 
-def _primary_lines(p: Mapping) -> list[str]:
+def _primary_lines(p: Mapping, counterfactual: bool = False) -> list[str]:
     if not p["available"]:
         return [f"Not measured: the run has no {p['group']} query at "
                 f"{' or '.join(_pct(PRIMARY_RATIOS))} pruned.", ""]
@@ -577,7 +577,8 @@ def _primary_lines(p: Mapping) -> list[str]:
                      [f"{v['difference']:+.1f}",
                       f"[{v['interval'][0]:+.1f}, {v['interval'][1]:+.1f}]",
                       f"{v['only_date']} / {v['only_agnostic']}"]))
-    verdict = ("Time matters at night in this world: at least one interval is entirely above "
+    where = "these counterfactual worlds" if counterfactual else "this world"
+    verdict = (f"Time matters at night in {where}: at least one interval is entirely above "
                "zero" if p["time_matters"] else
                "No interval is entirely above zero: this run does not show that knowing the "
                "condition keeps more of what localizes a night query")
@@ -659,7 +660,7 @@ def tables_markdown(metrics: Mapping) -> str:
     lines = [
         "### Primary comparison: does knowing the condition help at night?",
         "",
-        *_primary_lines(metrics["primary"]),
+        *_primary_lines(metrics["primary"], bool(metrics.get("counterfactual"))),
         "### Full map by condition",
         "",
     ]

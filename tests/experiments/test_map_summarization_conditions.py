@@ -137,6 +137,9 @@ def test_time_matters_only_where_an_interval_is_entirely_above_zero(lo_80, lo_90
     p = mc.primary(_metrics(lo_80, lo_90))
     assert p["available"] and len(p["cells"]) == 4
     assert p["time_matters"] is matters
+    if matters:  # said of the world, or of counterfactual copies of it
+        assert "Time matters at night in this world" in "\n".join(mc._primary_lines(p))
+        assert "in these counterfactual worlds" in "\n".join(mc._primary_lines(p, True))
 
 
 def test_a_night_the_full_map_cannot_localize_is_not_read_as_no_difference():
