@@ -48,6 +48,7 @@ from experiments.map_summarization.world import localization_kwargs
 from rp_jax.localize import LocalizationMap, localize_all
 from rp_jax.mapsum.oracles import redetection_hits
 from rp_jax.sources import robotcar_seasons as rcs
+from rp_jax.sources.capture import Camera
 
 NAME = "map_summarization_night_factors"
 FACTORS = {
@@ -226,8 +227,7 @@ def measure(config, world_map, jobs: Sequence, condition: str, factor: str,
         rgb, cam = render_variant(job, condition, factor)
         if factor == "as_taken":  # the re-render is the layout's own image
             same.append(bool(np.array_equal(rgb, images.read_rgb(job.image_path))))
-        camera = dataclasses.make_dataclass("Cam", ["K", "width", "height"])(
-            job.K, job.width, job.height)
+        camera = Camera("PINHOLE", job.width, job.height, job.K)  # undistorted, as written
         queries.append(describe_query(job.image_path.name, rgb, camera, (job.R, job.t),
                                       job.when, job.image_path, m.max_keypoints,
                                       world_map.vocabulary))
@@ -380,7 +380,7 @@ def main(argv: list[str] | None = None) -> int:
                             "under DIR/synthetic/ whose frames of --conditions are rendered "
                             "with --factor taken away (run the by-condition experiment on "
                             "them with --data-dir DIR/tensorflow_datasets)")
-        parser.add_argument("--factor", default="still_noiseless", choices=list(FACTORS),
+        parser.add_argument("--factor", default=None, choices=list(FACTORS),
                             help="with --write-layouts: what the copies take away "
                             "(default still_noiseless)")
         parser.add_argument("--seeds", type=cli.seed_list, default=None, metavar="A,B,...",
@@ -396,6 +396,10 @@ def main(argv: list[str] | None = None) -> int:
     if wanted is not None and (not wanted or any(c not in rcs.QUERY_CONDITIONS for c in wanted)):
         print(f"{prog}: error: --conditions {args.conditions!r}: expected query conditions "
               f"of {rcs.DATASET} ({', '.join(rcs.QUERY_CONDITIONS)})", file=sys.stderr)
+        return 2
+    if args.write_layouts is None and (args.seeds is not None or args.factor is not None):
+        print(f"{prog}: error: --seeds and --factor go with --write-layouts (to measure one "
+              "world: --seed)", file=sys.stderr)
         return 2
     if args.seed < 0 or args.frames < 1:
         print(f"{prog}: error: --seed must be >= 0 and --frames >= 1 (got {args.seed}, "
@@ -437,10 +441,11 @@ def _write_layouts(config, args, wanted: Sequence[str] | None, prog: str) -> int
             conditions = wanted or [c for c in NIGHT_CONDITIONS
                                     if c in rendered_conditions(world)]
             dst = builder_lib.synthetic_root(data_dir, "robotcar_seasons", m.synthetic_size, seed)
-            n = write_counterfactual_layout(src, dst, args.factor, conditions,
+            n = write_counterfactual_layout(src, dst, args.factor or "still_noiseless", conditions,
                                             workers=int(m.workers) or os.cpu_count() or 1,
                                             progress=not args.quiet)
-            print(f"{dst}: {', '.join(conditions)} {args.factor} ({n} frames rendered)")
+            print(f"{dst}: {', '.join(conditions)} {args.factor or 'still_noiseless'} "
+                  f"({n} frames rendered)")
     except (cond_lib.LayoutError, ValueError) as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2

@@ -96,6 +96,8 @@ def test_a_layout_the_preset_did_not_write_is_refused(tmp_path):
 @pytest.mark.parametrize("flags, message", [
     (["--conditions", "night,midnight"], "--conditions 'night,midnight'"),
     (["--frames", "0"], "--frames >= 1"),
+    (["--seeds", "0,1"], "--seeds and --factor go with --write-layouts"),
+    (["--factor", "still"], "--seeds and --factor go with --write-layouts"),
 ])
 def test_bad_flags_are_refused_before_any_work(tmp_path, capsys, flags, message):
     assert nf.main(["--size", "tiny", "--workdir", str(tmp_path / "w"), "--quiet",
