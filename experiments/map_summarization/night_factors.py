@@ -182,9 +182,10 @@ def write_counterfactual_layout(src: Path, dst: Path, factor: str, conditions: S
               "source": str(src.absolute())}
     mark = dst / COUNTERFACTUAL_JSON
     if mark.is_file():
-        if json.loads(mark.read_text()) != record:
-            raise ValueError(f"{mark}: another counterfactual copy ({mark.read_text().strip()}); "
-                             f"expected {record}: choose another folder")
+        found = json.loads(mark.read_text())
+        if found != record:
+            raise ValueError(f"{mark}: another counterfactual copy ({json.dumps(found)}), not "
+                             f"{json.dumps(record)}: choose another folder")
     elif dst.exists() and any(dst.iterdir()):
         raise ValueError(f"{dst}: not empty and not a counterfactual copy (no "
                          f"{COUNTERFACTUAL_JSON}); choose another folder")
@@ -284,8 +285,13 @@ def run(config, workdir: Path, *, seed: int, frames: int,
 
     root = cond_lib.ensure_layout(config, seed, progress=progress)
     world = synthetic_world(root)
+    present = rendered_conditions(world)
     if conditions is None:
-        conditions = [c for c in NIGHT_CONDITIONS if c in rendered_conditions(world)]
+        conditions = [c for c in NIGHT_CONDITIONS if c in present]
+    missing = [c for c in conditions if c not in present]
+    if missing:
+        raise cond_lib.LayoutError(f"{root}: no {', '.join(missing)} frames at size "
+                                   f"{world.size} (it renders {', '.join(present)})")
     world_map = cond_lib.build_map(config, root, {}, seed, progress=progress)
     loc_kwargs = localization_kwargs(config, seed)
     results: dict = {}
