@@ -73,7 +73,7 @@ MAPSUM_SPREAD = RESULTS / "map_summarization_spread"
 # Map summarization by condition on the RobotCar-Seasons-like world.
 MAPSUM_CONDITIONS = RESULTS / "map_summarization_conditions" / "metrics.json"
 # Its night queries re-rendered with one factor of the night capture taken away.
-NIGHT_FACTORS = RESULTS / "map_summarization_conditions" / "night_factors.json"
+NIGHT_FACTORS = RESULTS / "map_summarization_night_factors" / "metrics.json"
 # The by-condition run on copies of its worlds whose nights are rendered without the motion
 # blur and the sensor noise (``night_factors --write-layouts``): a counterfactual.
 NIGHTS_CF = RESULTS / "map_summarization_conditions_nights_cf" / "metrics.json"

@@ -278,9 +278,10 @@ def rendered_conditions(world: World) -> list[str]:
 def run(config, workdir: Path, *, seed: int, frames: int,
         conditions: Sequence[str] | None = None, progress: bool = True) -> dict:
     """Every factor on ``frames`` frames of each of ``conditions`` (default: the night
-    conditions the world's size renders) of world ``seed``; writes ``night_factors.json``
-    and ``night_factors.md`` in ``workdir``."""
-    from experiments import provenance
+    conditions the world's size renders) of world ``seed``; writes ``metrics.json`` and
+    ``report.md`` in ``workdir``."""
+    from experiments import provenance, run_files
+    from rp_jax import files
     from rp_jax.progress import bar as tqdm
 
     root = cond_lib.ensure_layout(config, seed, progress=progress)
@@ -310,8 +311,8 @@ def run(config, workdir: Path, *, seed: int, frames: int,
         "provenance": provenance.gather(),
     }
     workdir.mkdir(parents=True, exist_ok=True)
-    _write_atomic(workdir / "night_factors.json", json.dumps(out, indent=1) + "\n")
-    _write_atomic(workdir / "night_factors.md", markdown(out))
+    run_files.write_json(workdir / "metrics.json", out)
+    files.write_text(workdir / "report.md", markdown(out))
     return out
 
 
@@ -322,12 +323,6 @@ def _shown(path: Path) -> str:
         return str(Path(path).absolute().relative_to(Path.cwd()))
     except ValueError:
         return str(path)
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def tables_markdown(out: dict) -> str:
@@ -425,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
     except cond_lib.LayoutError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
-    print(f"wrote {workdir}/night_factors.json and night_factors.md")
+    print(f"wrote {workdir}/metrics.json and report.md")
     print(tables_markdown(out))
     return 0
 

@@ -20,7 +20,7 @@ def tiny(tmp_path_factory):
     code = nf.main(["--size", "tiny", "--frames", "3", "--workdir", str(workdir), "--quiet",
                     "--data-dir", str(tmp / "data")])
     assert code == 0
-    return workdir, json.loads((workdir / "night_factors.json").read_text())
+    return workdir, json.loads((workdir / "metrics.json").read_text())
 
 
 def test_every_factor_is_measured_on_the_same_frames(tiny):
@@ -32,7 +32,7 @@ def test_every_factor_is_measured_on_the_same_frames(tiny):
         assert s["frames"] == 3
         assert len(s["per_frame"]["redetected"]) == 3
         assert set(s["localized"]) == {"0.25m_2deg", "0.5m_5deg", "5m_10deg"}
-    assert "| no motion blur and no sensor noise |" in (workdir / "night_factors.md").read_text()
+    assert "| no motion blur and no sensor noise |" in (workdir / "report.md").read_text()
 
 
 def test_the_first_row_is_the_layouts_own_night(tiny):
