@@ -35,6 +35,7 @@ subset.
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -47,6 +48,8 @@ _METHODS = ("auto", "kdtree", "brute", "bf16")
 _U32 = 2.0**-24  # float32's unit roundoff
 _UB = 2.0**-8  # bfloat16's unit roundoff
 _PAD_SQ = 1e30  # squared norm of a padding point (never a neighbour)
+# The diagnostics of the last call, per thread (queries are localized several at a time).
+_diagnostics = threading.local()
 _ROW_BUCKET = 512  # query rows per product (padded: one compiled shape per size bucket)
 _COL_BUCKET = 1024  # candidate points are padded to a multiple of this
 
@@ -139,13 +142,14 @@ def _two_nearest_bf16(
     else:
         with cf.ThreadPoolExecutor(max_workers=threads) as pool:
             recomputed = sum(pool.map(rows, starts))
-    global last_recomputed_rows
-    last_recomputed_rows = recomputed
+    _diagnostics.recomputed_rows = recomputed
     return nn, np.sqrt(e1), good
 
 
-# Rows the last bf16 call recomputed exactly because their certificate failed (diagnostic).
-last_recomputed_rows = 0
+def last_recomputed_rows() -> int:
+    """How many rows this thread's last bfloat16 product recomputed exactly because their
+    certificate failed (a diagnostic; 0 before any call)."""
+    return getattr(_diagnostics, "recomputed_rows", 0)
 
 
 def _two_nearest_brute(
@@ -380,13 +384,14 @@ def match_subset(
         d, i = _exact_rows(q[open_rows], p[valid])
         nn[open_rows], d1[open_rows] = valid[i[:, 0]], np.sqrt(d[:, 0])
         good[open_rows] = d[:, 0] < r2 * d[:, 1]
-    global last_open_rows
-    last_open_rows = len(open_rows)
+    _diagnostics.open_rows = len(open_rows)
     return _matches(good, nn, d1, mutual_unique)
 
 
 # Open rows x members up to which match_subset answers them with _exact_rows (float64, a
 # few ms) instead of the bfloat16 product (a fixed cost of a padded 512-row product).
 _EXACT_LIMIT = 1_000_000
-# Rows the last match_subset call recomputed because the table left them open (diagnostic).
-last_open_rows = 0
+def last_open_rows() -> int:
+    """How many rows this thread's last ``match_subset`` call answered without the table
+    (a diagnostic; 0 before any call)."""
+    return getattr(_diagnostics, "open_rows", 0)

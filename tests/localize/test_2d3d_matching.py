@@ -119,7 +119,7 @@ def test_bf16_adversarial_ties_and_ratio_boundary():
     got = match_2d3d(queries, points, mutual_unique=False, method="bf16")
     np.testing.assert_array_equal(got[0], ref[0])
     np.testing.assert_array_equal(got[1], ref[1])
-    assert matching.last_recomputed_rows > 0
+    assert matching.last_recomputed_rows() > 0
     assert 0 < len(ref[0]) < len(queries)
 
 
@@ -161,7 +161,7 @@ def test_a_subset_matched_from_the_table_is_matched_as_on_its_own(open_rows_by, 
                 got = match_subset(table, member, queries, points[member], ratio, unique)
                 for w, g in zip(want, got):
                     np.testing.assert_array_equal(g, w, err_msg=f"k={k} keep={keep}")
-            opened += matching.last_open_rows
+            opened += matching.last_open_rows()
         assert (table.sq[:, 1:] >= table.sq[:, :-1]).all()  # nearest first
     assert opened > 0  # the exact recomputation was exercised
 
@@ -176,3 +176,32 @@ def test_match_subset_refuses_flags_or_descriptors_of_another_size():
         match_subset(table, np.ones(49, bool), queries, points[:49])
     with pytest.raises(ValueError, match="3 descriptors for 50 members"):
         match_subset(table, np.ones(50, bool), queries, points[:3])
+
+
+def test_the_diagnostics_are_each_threads_own():
+    import threading
+
+    from rp_jax.localize import matching
+
+    rng = np.random.default_rng(5)
+    points = _sift_norm(rng, 300)
+    queries = points[:40] + rng.normal(0, 12, (40, 128)).astype(np.float32)
+    table = matching.nearest_table(queries, points, k=2)  # leaves rows open
+    member = rng.random(300) < 0.3  # most rows' two nearest are not members
+    matching.match_subset(table, member, queries, points[member], 0.8, True)
+    here = matching.last_open_rows()
+    assert here > 0
+    seen = []
+
+    def other():
+        seen.append(matching.last_open_rows())  # nothing yet in this thread
+        few = rng.random(300) < 0.1
+        matching.match_subset(table, few, queries, points[few], 0.8, True)
+        seen.append(matching.last_open_rows())
+
+    t = threading.Thread(target=other)
+    t.start()
+    t.join()
+    assert seen[0] == 0 and seen[1] > 0  # the other thread's own, from its own call
+    assert matching.last_open_rows() == here  # untouched by the other thread's call
+

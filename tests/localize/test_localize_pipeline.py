@@ -148,7 +148,7 @@ def test_summaries_localized_from_the_full_maps_table_as_on_their_own():
         for q, table in zip(queries, tables):
             alone = localize(q, lmap, num_retrieved=3)
             from_table = localize(q, lmap, num_retrieved=3, nearest=table)
-            opened += matching.last_open_rows
+            opened += matching.last_open_rows()
             localized += alone.success
             assert from_table.num_matches == alone.num_matches
             np.testing.assert_array_equal(from_table.matched_points, alone.matched_points)
