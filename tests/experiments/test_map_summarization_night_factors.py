@@ -43,6 +43,14 @@ def test_the_first_row_is_the_layouts_own_night(tiny):
     # The camera: the night's longest exposure; still, the same exposure and gain.
     assert night["as_taken"]["exposure_ms_median"] == pytest.approx(1000 / 11.1, rel=1e-3)
     assert night["still"]["per_frame"]["gain"] == night["as_taken"]["per_frame"]["gain"]
+    # A blur-limited exposure: stopped at one pixel of blur 10 m away, at a lower gain.
+    short = night["short_exposure"]
+    job = nf.sample_jobs(nf.planned_world(Path("/nonexistent"), "tiny", 0), "night", 1)[0]
+    limit_ms = 1000 * nf.BLUR_DISTANCE_M / (job.K[0, 0] * np.linalg.norm(job.velocity))
+    assert short["exposure_ms_median"] == pytest.approx(limit_ms, rel=1e-6)
+    # (at the tiny size's 128 pixels a pixel is wide: about 27 ms against the frame's 90)
+    assert short["exposure_ms_median"] < night["as_taken"]["exposure_ms_median"] / 2
+    assert short["gain_median"] < night["as_taken"]["gain_median"]
     # By day, the same views are taken in a fraction of a millisecond at a low gain.
     assert night["by_day"]["exposure_ms_median"] < 5
     assert night["by_day"]["gain_median"] < night["as_taken"]["gain_median"] / 100

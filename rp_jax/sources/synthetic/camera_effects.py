@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 __all__ = ["expose", "motion_blur", "motion_field", "Sensor", "WEBCAM", "GRASSHOPPER2_11HZ",
-           "BUMBLEBEE_XB3_16HZ",
+           "BUMBLEBEE_XB3_16HZ", "with_exposure_limit",
            "sensor_named", "TARGET_MEAN", "MAX_GAIN", "MIN_GAIN"]
 
 TARGET_MEAN = 0.2  # linear mean luminance auto-exposure aims at
@@ -111,6 +111,23 @@ def _bumblebee_xb3_16hz() -> Sensor:
 
 BUMBLEBEE_XB3_16HZ = _bumblebee_xb3_16hz()
 _SENSORS = {s.name: s for s in (WEBCAM, GRASSHOPPER2_11HZ, BUMBLEBEE_XB3_16HZ)}
+
+
+def with_exposure_limit(sensor: Sensor, seconds: float) -> Sensor:
+    """``sensor`` with its auto-exposure stopped at ``seconds`` (a blur-limiting exposure
+    policy): beyond it the same amplification makes up the rest, so the whole gain range
+    shrinks in proportion and a dark frame gets darker and noisier instead of longer.
+
+    Raises:
+      ValueError: the sensor models no exposure time, or ``seconds`` is not in
+        (0, its longest exposure].
+    """
+    if sensor.max_exposure_s is None or not 0 < seconds <= sensor.max_exposure_s:
+        raise ValueError(f"an exposure limit of {seconds} s for {sensor.name}: expected "
+                         f"(0, {sensor.max_exposure_s}] s")
+    k = seconds / sensor.max_exposure_s
+    return dataclasses.replace(sensor, exposure_gain=sensor.exposure_gain * k,
+                               max_gain=sensor.max_gain * k, max_exposure_s=seconds)
 
 
 def sensor_named(name: str | None) -> Sensor:

@@ -97,6 +97,8 @@ class FrameJob:
       velocity: the camera's world velocity (m/s) while it exposes, or None (still).
       sensor_noise: the scale of the camera's noise (``camera_effects.Sensor.noise``): 1
         for every preset; 0 renders the frame without it (a counterfactual).
+      exposure_limit_s: where the camera's auto-exposure stops
+        (``camera_effects.with_exposure_limit``); None: at the sensor's longest exposure.
     """
 
     scene: SceneSpec
@@ -117,6 +119,7 @@ class FrameJob:
     sensor: str | None = None
     velocity: tuple[float, float, float] | None = None
     sensor_noise: float = 1.0
+    exposure_limit_s: float | None = None
 
     @property
     def outputs(self) -> list[Path]:
@@ -168,6 +171,8 @@ def render_frame(job: FrameJob):
     sensor = camera_effects.sensor_named(job.sensor)
     if job.sensor_noise != 1.0:
         sensor = dataclasses.replace(sensor, noise=job.sensor_noise)
+    if job.exposure_limit_s is not None:
+        sensor = camera_effects.with_exposure_limit(sensor, job.exposure_limit_s)
     return render(
         scene_of(job.scene),
         _make_view(job),

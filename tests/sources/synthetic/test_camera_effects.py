@@ -82,3 +82,28 @@ def test_a_noiseless_sensor_is_the_same_camera_without_its_noise():
     # The same exposure: the noiseless frame is the noisy one's mean, without its spread.
     assert abs(float(clean_a.mean()) - float(noisy_a.mean())) < 0.1 * float(noisy_a.mean())
     assert np.std(clean_a.astype(float) - noisy_a) > 1.0
+
+
+def test_an_exposure_limit_trades_the_long_exposure_for_gain():
+    g = ce.GRASSHOPPER2_11HZ
+    short = ce.with_exposure_limit(g, g.max_exposure_s / 10)
+    dark = 2e-6  # darker than either camera can bring to the target: both at their limits
+    long_img, long_meta = ce.expose(_radiance(dark), K, np.random.default_rng(1), g)
+    short_img, short_meta = ce.expose(_radiance(dark), K, np.random.default_rng(1), short)
+    assert short_meta["exposure_s"] == pytest.approx(g.max_exposure_s / 10)
+    assert long_meta["exposure_s"] == pytest.approx(g.max_exposure_s)
+    # The same amplification at its top: the same noise relative to the signal's scale...
+    assert short_meta["noise_sigma_dark"] == pytest.approx(long_meta["noise_sigma_dark"])
+    assert short_meta["gain"] == pytest.approx(long_meta["gain"] / 10)
+    # ...on a tenth of the light: a darker frame.
+    assert short_img.mean() < long_img.mean()
+    # A bright scene is taken as before (its exposure below either limit).
+    a, ma = ce.expose(_radiance(0.05), K, np.random.default_rng(1), g)
+    b, mb = ce.expose(_radiance(0.05), K, np.random.default_rng(1), short)
+    np.testing.assert_array_equal(a, b)
+    assert ma["gain"] == mb["gain"]
+    for bad in (0.0, 2 * g.max_exposure_s):
+        with pytest.raises(ValueError, match="exposure limit"):
+            ce.with_exposure_limit(g, bad)
+    with pytest.raises(ValueError, match="exposure limit"):
+        ce.with_exposure_limit(ce.WEBCAM, 0.01)
