@@ -15,7 +15,7 @@ night queries with one of those taken away at a time and asks the same full map 
 - ``noiseless``: no sensor noise (the same exposure, gain and blur);
 - ``still_noiseless``: neither;
 - ``short_exposure``: the camera as it is but for its auto-exposure, stopped where the car's
-  motion moves a point 10 m to the side by one pixel (about 8 ms for the full size's 6-9 m/s,
+  motion moves a point 10 m to the side by one pixel (6-8 ms at the full size's speeds,
   against the frame period's 90 ms), the rest made up by gain: a blur-limiting exposure
   policy, which trades the blur for a darker, noisier frame;
 - ``by_day``: the same view at the reference traversal's time of day and sky (overcast,
