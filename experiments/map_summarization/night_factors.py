@@ -418,6 +418,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: error: --conditions {args.conditions!r}: expected query conditions "
               f"of {rcs.DATASET} ({', '.join(rcs.QUERY_CONDITIONS)})", file=sys.stderr)
         return 2
+    if args.manual_dir is not None:
+        print(f"{prog}: error: --manual-dir {args.manual_dir}: a real download cannot be "
+              "rendered again; this command re-renders a synthetic robotcar_seasons world "
+              "(its own, or one on disk: --config.map.root DIR)", file=sys.stderr)
+        return 2
     if args.write_layouts is None and (args.seeds is not None or args.factor is not None):
         print(f"{prog}: error: --seeds and --factor go with --write-layouts (to measure one "
               "world: --seed)", file=sys.stderr)

@@ -106,6 +106,7 @@ def test_a_layout_the_preset_did_not_write_is_refused(tmp_path):
     (["--frames", "0"], "--frames >= 1"),
     (["--seeds", "0,1"], "--seeds and --factor go with --write-layouts"),
     (["--factor", "still"], "--seeds and --factor go with --write-layouts"),
+    (["--manual-dir", "."], "a real download cannot be rendered again"),
 ])
 def test_bad_flags_are_refused_before_any_work(tmp_path, capsys, flags, message):
     assert nf.main(["--size", "tiny", "--workdir", str(tmp_path / "w"), "--quiet",
