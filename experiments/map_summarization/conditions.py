@@ -518,8 +518,8 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         "min_inliers": int(m.min_inliers),
         "maps": {str(s["seed"]): s["map"] for s in per_seed},
         "dataset": {"map": [s["root"] for s in per_seed]},
-        "counterfactual": {str(s["seed"]): counterfactual_of(Path(s["root"])) for s in per_seed
-                           if counterfactual_of(Path(s["root"])) is not None} or None,
+        "counterfactual": {str(s["seed"]): c for s in per_seed
+                           if (c := counterfactual_of(Path(s["root"]))) is not None} or None,
         "rp_day": None if rp is None else {**rp_counts, "schedule": rp.schedule.name,
                                             "timestamps": rp.schedule.num_timestamps},
         "outcome_scorers": None if scorers is None else {

@@ -238,14 +238,17 @@ def render_job(job: FrameJob) -> tuple[str, float]:
     encoded = write_layout.encode_image(image, job.image_path.suffix)
     if job.keypoints_path is not None:
         # Keypoints of the image as a reader will decode it (after JPEG).
-        decoded = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
-        kp = _keypoints_with_depth(
-            cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB), np.asarray(frame.depth, np.float32)
-        )
+        kp = _keypoints_with_depth(decoded_rgb(encoded), np.asarray(frame.depth, np.float32))
         write_layout.write_bytes_atomic(job.keypoints_path, _npz_bytes(kp))
     # The image last: its presence marks the job done on a resumed run.
     write_layout.write_bytes_atomic(job.image_path, encoded)
     return str(job.image_path), time.perf_counter() - start
+
+
+def decoded_rgb(encoded: bytes) -> np.ndarray:
+    """An encoded image (``write_layout.encode_image``) as a reader decodes it: RGB uint8."""
+    bgr = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
