@@ -147,6 +147,10 @@ def weather_of_day(seed: int, date: dt.date, latitude: float) -> tuple[str, floa
 # December to February days in Pittsburgh and 35 % of the 21 Decembers.
 CLIMATE_SEED = 8
 SNOW_LEVELS_CM = (2.0, 5.0, 10.0, 20.0)  # snow depth at which cover levels 1..4 start
+# A recording documented as made on a snowy day (``conditions_at(weather="snow")``) has at
+# least this cover: level 1, a light one (2-5 cm), as RobotCar Seasons' snow images show
+# (pavements and roofs white, the road's surface through it).
+DOCUMENTED_SNOW_LEVEL = 1
 _SEASON_DAYS = 275  # a winter season runs from 1 October (1 April south) for this many days
 
 
@@ -157,21 +161,49 @@ def _season_start(date: dt.date, latitude: float) -> dt.date:
     return start if date >= start else dt.date(date.year - 1, month, 1)
 
 
-def _climate_temperature(doy: np.ndarray, latitude: float) -> np.ndarray:
-    """Mean daily air temperature (deg C) by day of year (hemisphere-shifted) and latitude.
+# A world's climate (``build_scene(climate=...)``, ``conditions_at(climate=...)``):
+# - "latitude": the mean and seasonal range of a continental climate at the latitude
+#   (``_climate_temperature``), as every world was rendered before the places' own normals
+#   were known; the presets whose results were made with it keep it (as they keep
+#   ``photometry.LEGACY``), so that those results still reproduce;
+# - "local": the place's own normals where ``CLIMATE_NORMALS`` has them, else the latitude's.
+CLIMATES = ("latitude", "local")
+# Where a place's own climate normals are known ("local" climate), they replace the
+# latitude's (by the 1-degree cell of ``_regional_winter``): (annual mean, half the range
+# between the coldest and the warmest month's mean), deg C.
+# - Oxford, the RobotCar recordings' city (cell 51 N, 2 W): a maritime climate, far milder
+#   in winter than a continental one at its latitude. The Radcliffe Meteorological Station's
+#   mean over 1989-2018 is 11.06 C (School of Geography and the Environment, University of
+#   Oxford, 2019), and its monthly means are about 5 C in January and 18 C in July (daily
+#   maximum and minimum about 8 and 2 C in January, 23 and 13 C in July; 1991-2020). The
+#   latitude's sinusoid gave about -13 C in January, so that the RobotCar-like worlds froze
+#   all winter: no rain fell on the night-rain and rain traversals, snow lay for months.
+CLIMATE_NORMALS = {(51, -2): (11.1, 6.5)}
 
-    A sinusoid coldest around 20 January; at 40.4 N (Pittsburgh) about -2 C in January and
-    23 C in July, colder and more seasonal towards the poles.
+
+def _climate_temperature(doy: np.ndarray, latitude: float,
+                         longitude: float | None = None) -> np.ndarray:
+    """Mean daily air temperature (deg C) by day of year (hemisphere-shifted) and place.
+
+    A sinusoid coldest around 20 January. Its mean and amplitude are the place's own
+    (``CLIMATE_NORMALS``, by 1-degree cell) where ``longitude`` is given (the "local"
+    climate) and the place is known, else the latitude's: at 40.4 N
+    (Pittsburgh) about -2 C in January and 23 C in July, colder and more seasonal towards
+    the poles (a continental climate).
     """
-    lat = abs(latitude)
-    mean = 11.0 - 0.75 * (lat - 40.0)
-    amp = max(2.0, 12.5 + 0.25 * (lat - 40.0))
+    cell = None if longitude is None else (int(np.floor(latitude)), int(np.floor(longitude)))
+    if cell in CLIMATE_NORMALS:
+        mean, amp = CLIMATE_NORMALS[cell]
+    else:
+        lat = abs(latitude)
+        mean = 11.0 - 0.75 * (lat - 40.0)
+        amp = max(2.0, 12.5 + 0.25 * (lat - 40.0))
     return mean - amp * np.cos(2 * np.pi * (doy - 20) / 365.0)
 
 
 @functools.lru_cache(maxsize=256)
 def _regional_winter(
-    latitude: float, longitude: float, start_ordinal: int
+    latitude: float, longitude: float, start_ordinal: int, climate: str = "latitude"
 ) -> tuple[np.ndarray, np.ndarray]:
     """Daily (temperature deg C, precipitation mm of water) of one winter season in a region.
 
@@ -191,7 +223,8 @@ def _regional_winter(
     for k in range(_SEASON_DAYS):
         a = 0.7 * a + 0.714 * 4.5 * eps[k]  # stationary sigma 4.5 C
         anomaly[k] = a
-    temp = _climate_temperature(doy, latitude) + anomaly
+    temp = _climate_temperature(doy, latitude, longitude if climate == "local" else None)
+    temp = temp + anomaly
     wet = rng.random(_SEASON_DAYS) < 0.4
     precip = np.where(wet, rng.exponential(4.0, _SEASON_DAYS), 0.0)
     return temp, precip
@@ -199,7 +232,7 @@ def _regional_winter(
 
 @functools.lru_cache(maxsize=1024)
 def _snow_pack(
-    seed: int, latitude: float, longitude: float, start_ordinal: int
+    seed: int, latitude: float, longitude: float, start_ordinal: int, climate: str = "latitude"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Daily snow depth (cm), snowfall flag and last-snowfall ordinal of a scene's winter.
 
@@ -208,7 +241,7 @@ def _snow_pack(
     settles 3 % a day. The scene seed only sets how exposed the street is (its melt rate,
     0.85-1.2 x), so streets of one city share storms but not exactly their melt.
     """
-    temp, precip = _regional_winter(latitude, longitude, start_ordinal)
+    temp, precip = _regional_winter(latitude, longitude, start_ordinal, climate)
     exposure = np.random.default_rng([seed & 0xFFFFFFFF, 12]).uniform(0.85, 1.2)
     start = dt.date.fromordinal(start_ordinal)
     depth = np.zeros(_SEASON_DAYS)
@@ -235,9 +268,11 @@ def _snow_pack(
 
 
 def snow_state(
-    seed: int, date: dt.date, latitude: float, longitude: float = 0.0
+    seed: int, date: dt.date, latitude: float, longitude: float = 0.0, *,
+    climate: str = "latitude",
 ) -> tuple[int, bool, int, float]:
-    """Snow on the ground on a date: (level 0..4, snowing that day, pattern id, depth cm).
+    """Snow on the ground on a date: (level 0..4, snowing that day, pattern id, depth cm),
+    in the world's ``climate`` (``CLIMATES``).
 
     Deterministic per (scene seed, place, date). The snow pack is simulated day by day over
     the winter (``_snow_pack``), so it accumulates and persists between storms. The
@@ -251,23 +286,35 @@ def snow_state(
     if k >= _SEASON_DAYS:
         return 0, False, 0, 0.0
     depth, fell, last = _snow_pack(
-        int(seed), round(float(latitude), 3), round(float(longitude), 3), start.toordinal()
+        int(seed), round(float(latitude), 3), round(float(longitude), 3), start.toordinal(),
+        _checked(climate),
     )
     level = int(np.digitize(depth[k], SNOW_LEVELS_CM))
     return level, bool(fell[k]), int(last[k]) if level else 0, float(depth[k])
 
 
-def air_temperature(date: dt.date, latitude: float, longitude: float = 0.0) -> float:
-    """Daily mean air temperature (deg C) of the regional weather series on a date."""
+def _checked(climate: str) -> str:
+    if climate not in CLIMATES:
+        raise ValueError(f"climate must be one of {CLIMATES}, got {climate!r}")
+    return climate
+
+
+def air_temperature(date: dt.date, latitude: float, longitude: float = 0.0, *,
+                    climate: str = "latitude") -> float:
+    """Daily mean air temperature (deg C) of the regional weather series on a date, in the
+    world's ``climate`` (``CLIMATES``)."""
     start = _season_start(date, latitude)
     k = (date - start).days
     if k < _SEASON_DAYS:
         return float(
             _regional_winter(
-                round(float(latitude), 3), round(float(longitude), 3), start.toordinal()
+                round(float(latitude), 3), round(float(longitude), 3), start.toordinal(),
+                _checked(climate),
             )[0][k]
         )
-    return float(_climate_temperature(np.array([_day_of_year(date, latitude)]), latitude)[0])
+    local = longitude if _checked(climate) == "local" else None
+    return float(_climate_temperature(np.array([_day_of_year(date, latitude)]), latitude,
+                                      local)[0])
 
 
 def snow_level(
@@ -290,6 +337,7 @@ def conditions_at(
     when: dt.datetime,
     weather: str | None = None,
     night_sky: float = NIGHT_SKY,
+    climate: str = "latitude",
 ) -> Conditions:
     """The capture conditions of a scene at an instant.
 
@@ -297,12 +345,17 @@ def conditions_at(
       seed: the scene seed (weather and snow are per scene and per local date).
       latitude, longitude: degrees.
       when: timezone-aware capture instant; the local date and hour are read on its clock.
-      weather: a known day's sky (one of ``WEATHERS`` but "snow"), for a recording whose
-        conditions are documented (the CMU reference traversal: sunny); None draws the
-        day's weather. The snow on the ground still follows the season's snow pack.
+      weather: a known day's sky (one of ``WEATHERS``), for a recording whose conditions
+        are documented (the CMU reference traversal: sunny); None draws the day's weather.
+        The snow on the ground still follows the season's snow pack, except that "snow"
+        (a recording made on a day documented as snowy: RobotCar Seasons' snow traversal)
+        puts at least a light cover (``DOCUMENTED_SNOW_LEVEL``) on the ground under an
+        overcast sky, where the pack has less.
       night_sky: the moonless night sky's light on an upward surface, in the renderer's
         units (``photometry.StreetLighting.night_sky``); the night sky's own glow scales
         with it.
+      climate: the world's temperatures (``CLIMATES``): its snow pack and whether rain
+        freezes.
 
     Returns:
       ``Conditions``.
@@ -313,18 +366,21 @@ def conditions_at(
     az = float(az)
     date = when.date()
     kind, cover, wind = weather_of_day(seed, date, latitude)
-    snow, snowing, snow_pattern, _ = snow_state(seed, date, latitude, longitude)
+    snow, snowing, snow_pattern, _ = snow_state(seed, date, latitude, longitude,
+                                                climate=climate)
     if weather is not None:
-        if weather not in WEATHERS or weather == "snow":
-            raise ValueError(f"weather must be one of {WEATHERS[:-1]} or None, got {weather!r}")
-        kind, snowing = weather, False
+        if weather not in WEATHERS:
+            raise ValueError(f"weather must be one of {WEATHERS} or None, got {weather!r}")
+        if weather == "snow" and snow < DOCUMENTED_SNOW_LEVEL:
+            snow, snow_pattern = DOCUMENTED_SNOW_LEVEL, snow_pattern or date.toordinal()
+        kind, snowing = ("overcast" if weather == "snow" else weather), False
         cover = {"clear": 0.05, "partly_cloudy": 0.45, "overcast": 0.95, "rain": 1.0}[kind]
     if snowing:
         kind, cover = "snow", 1.0
     elif (
         kind == "rain"
         and abs(latitude) >= 28.0
-        and air_temperature(date, latitude, longitude) < 0.0
+        and air_temperature(date, latitude, longitude, climate=climate) < 0.0
     ):
         kind = "overcast"  # no rain on a freezing day
     density, autumn, grass = season_of_day(date, latitude)

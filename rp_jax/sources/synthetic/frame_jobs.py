@@ -99,6 +99,7 @@ class FrameJob:
         for every preset; 0 renders the frame without it (a counterfactual).
       exposure_limit_s: where the camera's auto-exposure stops
         (``camera_effects.with_exposure_limit``); None: at the sensor's longest exposure.
+      vehicle: the camera's own car, ``(x, y, heading)`` (``render.render``), or None.
     """
 
     scene: SceneSpec
@@ -120,6 +121,7 @@ class FrameJob:
     velocity: tuple[float, float, float] | None = None
     sensor_noise: float = 1.0
     exposure_limit_s: float | None = None
+    vehicle: tuple[float, float, float] | None = None
 
     @property
     def outputs(self) -> list[Path]:
@@ -182,6 +184,7 @@ def render_frame(job: FrameJob):
         lighting=photometry.named(job.lighting),
         sensor=sensor,
         velocity=None if job.velocity is None else np.asarray(job.velocity, np.float64),
+        vehicle=job.vehicle,
     )
 
 

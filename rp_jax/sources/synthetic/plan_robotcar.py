@@ -71,12 +71,15 @@ ROBOTCAR_LOCATION = (51.7520, -1.2577)  # Oxford
 ROBOTCAR_CAMERA_HEIGHT_M = 1.6
 
 
-def oxford_street(scene_seed: int, length_m: float) -> SceneSpec:
-    """The street both RobotCar presets drive: a street scene at Oxford's latitude and
-    longitude, ``length_m`` long, with this preset's vegetation."""
+def oxford_street(scene_seed: int, length_m: float, climate: str = "latitude") -> SceneSpec:
+    """The street the RobotCar presets drive: a street scene at Oxford's latitude and
+    longitude, ``length_m`` long, with this preset's vegetation, in ``climate``
+    (``conditions.CLIMATES``: ``robotcar_day`` and ``robotcar_seasons`` have Oxford's own,
+    ``robotcar`` the latitude's, with which its results were made)."""
     lat, lon = ROBOTCAR_LOCATION
+    extra = () if climate == "latitude" else (("climate", climate),)
     return SceneSpec(seed=scene_seed, kind="street", length_m=length_m, latitude=lat,
-                     longitude=lon, vegetation=0.45)
+                     longitude=lon, vegetation=0.45, extra=extra)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,14 +149,16 @@ def plan_day(out_dir: Path, size: str, seed: int) -> Plan:
 
     spec, hours = _DAY_SIZES[size]
     return _plan(out_dir, spec, day_traversals(hours), seed, "robotcar_day",
-                 lighting=photometry.EN_13201.name, sensor=camera_effects.BUMBLEBEE_XB3_16HZ.name)
+                 lighting=photometry.EN_13201.name, sensor=camera_effects.BUMBLEBEE_XB3_16HZ.name,
+                 climate="local")
 
 
 def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]], seed: int,
-          name: str, *, lighting: str | None = None, sensor: str | None = None) -> Plan:
+          name: str, *, lighting: str | None = None, sensor: str | None = None,
+          climate: str = "latitude") -> Plan:
     """The frames of ``traversals`` along one street and the layout's metadata writer;
     ``lighting`` and ``sensor`` as ``FrameJob``'s (a sensor also blurs with the car's
-    velocity)."""
+    velocity), ``climate`` as ``oxford_street``'s."""
     scene_stream, traversal_stream, frame_stream = _STREAMS[name]
     cam = write_layout.ROBOTCAR_STEREO_CENTRE
     cam = write_layout.scale_camera(cam, round(cam.width * spec.scale),
@@ -161,7 +166,7 @@ def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]],
     lat, lon = ROBOTCAR_LOCATION
     leg = 12.0 * spec.viewpoints + 10.0  # metres per direction
     scene_spec = oxford_street(int(seeded_rng(seed, scene_stream).integers(0, 2**31 - 1)),
-                               leg + 20.0)
+                               leg + 20.0, climate)
     scene = frame_jobs.scene_of(scene_spec)
     # The renderer's street has right-hand traffic (its passing cars use those lanes), so
     # the car keeps right here, unlike in Oxford.
@@ -221,6 +226,8 @@ def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]],
                         velocity=(None if sensor is None else
                                   (speed * math.cos(pose.heading),
                                    speed * math.sin(pose.heading), 0.0)),
+                        vehicle=(float(pose.position[0]), float(pose.position[1]),
+                                 float(pose.heading)),
                     )
                 )
         # INS at 10 Hz over the whole drive.

@@ -20,17 +20,21 @@ are those of that instant in Oxford, and writes the real layout, read by
     <out>/_evaluation/robotcar_v2_queries.txt           every query's pose, synthetic only
 
 The sky of a traversal is forced where its condition names it (rain and night-rain: rain;
-sun: clear; the reference and both overcast ones: overcast) and drawn from the world's
-climatology elsewhere (dawn, dusk, night, snow): in particular the snow traversal has snow
-on the ground only where the world's winter series puts it, not by fiat.
+sun: clear; the reference and both overcast ones: overcast; snow: a snowy day, at least a
+light cover on the ground under an overcast sky, ``conditions.DOCUMENTED_SNOW_LEVEL``) and
+drawn from the world's climatology elsewhere (dawn, dusk, night). The world's weather is
+Oxford's (``conditions.CLIMATE_NORMALS``: a maritime winter, seldom freezing), so left to
+the climatology the snow traversal would find no snow on its day in any world.
 
 Nights are lit and seen in physical units: street lamps of a 70 W sodium lantern's
 intensity under a night sky of about 0.1 lux, lit windows of tens of cd/m²
 (``photometry.EN_13201``), taken by the RobotCar's Grasshopper2 at 11.1 Hz
 (``camera_effects.GRASSHOPPER2_11HZ``): its exposure lengthens up to one frame period, with
-the motion blur of the moving car, then its gain rises with the noise. Not modelled:
-lamp types by street class, the car's own and passing cars' headlights on the street, and
-wet-road reflections in night-rain.
+the motion blur of the moving car, then its gain rises with the noise. The car's own and
+the passing cars' dipped headlamps light the street (UN ECE R112's passing beam), and in
+night-rain the wet road mirrors the lamps and headlamps (``night_lights``). Not modelled:
+lamp types by street class, and which windows are lit by the hour beyond a step function
+of the local time (``conditions.conditions_at``).
 """
 
 from __future__ import annotations
@@ -90,7 +94,7 @@ CONDITION_WEATHER = {
     "overcast-summer": "overcast",
     "overcast-winter": "overcast",
     "rain": "rain",
-    "snow": None,
+    "snow": "snow",
     "sun": "clear",
 }
 V2_QUERIES = f"{EVALUATION_DIR}/robotcar_v2_queries.txt"
@@ -120,7 +124,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                                     round(REAL_CAMERA.height * spec.scale))
     route_length = spec.positions * spec.spacing_m + 10.0
     scene_spec = oxford_street(int(seeded_rng(seed, 30).integers(0, 2**31 - 1)),
-                               route_length + 20.0)
+                               route_length + 20.0, "local")
     scene = frame_jobs.scene_of(scene_spec)
     # Right-hand traffic, as the renderer's passing cars drive (see plan_robotcar).
     x0 = (scene.length_m - route_length) / 2
@@ -159,6 +163,8 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                     lighting=photometry.EN_13201.name,
                     sensor=camera_effects.GRASSHOPPER2_11HZ.name,
                     velocity=velocity,
+                    vehicle=(float(vehicle.position[0]), float(vehicle.position[1]),
+                             float(vehicle.heading)),
                 )
                 jobs.append(job)
                 if is_reference:

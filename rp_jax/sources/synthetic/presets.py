@@ -127,7 +127,10 @@ WORLD_VERSION = 4
 #    RobotCar's Grasshopper2 at 11.1 Hz with its exposure limit and motion blur
 #    (``camera_effects.GRASSHOPPER2_11HZ``).
 # robotcar_day renders its nights as robotcar_seasons' version 5 does, from its first version.
-_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 5, "robotcar_day": 5}
+# 6: in both, the passing cars' and the camera's own car's dipped headlamps light the street
+#    at night, and in rain at night the wet road mirrors the lamps and headlamps
+#    (``night_lights``).
+_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6}
 
 
 def world_version(preset: str | None) -> int:

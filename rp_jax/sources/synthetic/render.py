@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic import camera_effects, photometry, sky
+from rp_jax.sources.synthetic import camera_effects, night_lights, photometry, sky, traffic
 from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic.plane_warp import NEAR, poly_region, warp
 from rp_jax.sources.synthetic.quads import Material, QuadSet, TextureState
@@ -412,6 +412,45 @@ def _window_threshold(
     return (255.0 - 127.0 * p).astype(np.float32)
 
 
+def _vehicle_lights(scene: Scene, when: dt.datetime, vehicle, C: np.ndarray,
+                    lighting: photometry.StreetLighting) -> tuple[np.ndarray, np.ndarray]:
+    """The headlamps lighting the street near the camera at ``when`` (positions, forwards):
+    the passing cars' and the camera's own car's, none without ``lighting.vehicle_lights``."""
+    if not lighting.vehicle_lights:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    pos, fwd = traffic.headlamps(traffic.passing_cars(scene, when))
+    if vehicle is not None:
+        own_pos, own_fwd = traffic.car_headlamps(*vehicle, traffic.OWN_CAR_LENGTH_M,
+                                                 traffic.OWN_CAR_WIDTH_M)
+        pos, fwd = np.concatenate([pos, own_pos]), np.concatenate([fwd, own_fwd])
+    keep = np.linalg.norm(pos - C, axis=1) < night_lights.REACH_M
+    return pos[keep], fwd[keep]
+
+
+def _night_lights_on(Xw: np.ndarray, finite: np.ndarray, nrm: np.ndarray, qfull: np.ndarray,
+                     mat: np.ndarray, C: np.ndarray, lamps: np.ndarray, headlamps: tuple,
+                     lighting: photometry.StreetLighting, light: np.ndarray, *,
+                     wet: bool) -> np.ndarray | None:
+    """Adds the headlamps' light to ``light`` (in place) and returns the wet road's gloss
+    (H, W, 3; None where the road is dry or the lighting has none), ``night_lights``."""
+    nrm1 = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)
+    X = [np.ascontiguousarray(Xw[..., k]) for k in range(3)]
+    Nk = [np.take(nrm1[:, k], qfull) for k in range(3)]
+    pos, fwd = headlamps
+    if len(pos):
+        E = night_lights.headlamp_illuminance(X, Nk, pos, fwd)
+        light += (E / np.float32(photometry.LUX_PER_UNIT) * finite)[..., None] * np.float32(
+            photometry.HEADLAMP_RGB)
+    if not (wet and lighting.wet_reflections) or not (len(lamps) or len(pos)):
+        return None
+    road = (np.take(np.append(mat, -1), qfull) == Material.GROUND) & finite.astype(bool)
+    gloss = np.zeros(road.shape + (3,), np.float32)
+    gloss[road] = night_lights.wet_road_radiance(
+        [c[road] for c in X], [c[road] for c in Nk], C, lamps, lighting.lamp_intensity_cd,
+        lighting.lamp_rgb, pos, fwd)
+    return gloss
+
+
 def render(
     scene: Scene,
     view: View,
@@ -422,6 +461,7 @@ def render(
     lighting: photometry.StreetLighting = photometry.LEGACY,
     sensor: camera_effects.Sensor = camera_effects.WEBCAM,
     velocity: np.ndarray | None = None,
+    vehicle: tuple[float, float, float] | None = None,
 ) -> Frame:
     """Renders the world as a camera records it at an instant.
 
@@ -438,12 +478,15 @@ def render(
       sensor: the camera's exposure and gain range (``camera_effects``).
       velocity: the camera's velocity (world, m/s) for the motion blur of a sensor whose
         exposure is modelled; None: still. An undistorted view only.
+      vehicle: the camera's own car, ``(x, y, heading)`` of its centre (heading in radians
+        from +x), whose headlamps light the street where ``lighting.vehicle_lights``; None:
+        the camera is not on a car.
 
     Returns:
       ``Frame`` with rgb, depth, category and meta.
     """
     cond = condlib.conditions_at(scene.seed, scene.latitude, scene.longitude, when, weather,
-                                 night_sky=lighting.night_sky)
+                                 night_sky=lighting.night_sky, climate=scene.climate)
     state = TextureState(
         season=cond.grass,
         snow=cond.snow,
@@ -574,10 +617,16 @@ def render(
         dens = cv2.resize(dens, size, interpolation=cv2.INTER_LINEAR)
         direct = cv2.resize(direct_ss, size, interpolation=cv2.INTER_AREA)
         light -= (0.85 * dens * direct)[..., None] * cond.sun_rgb
+    wet_gloss = None
     if cond.lamps_on:
         Xw, finite = _world_points(Kc_inv, R, t, depth, 1)
+        near = scene.lamps[np.linalg.norm(scene.lamps - C, axis=1) < 60.0] if len(
+            scene.lamps) else np.zeros((0, 3))
+        if lighting.vehicle_lights or lighting.wet_reflections:
+            lamps_on_road = _vehicle_lights(scene, when, vehicle, C, lighting)
+            wet_gloss = _night_lights_on(Xw, finite, nrm, qfull, mat, C, near, lamps_on_road,
+                                         lighting, light, wet=cond.wet)
         if len(scene.lamps):
-            near = scene.lamps[np.linalg.norm(scene.lamps - C, axis=1) < 60.0]
             nrm1 = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)
             X = [np.ascontiguousarray(Xw[..., k]) for k in range(3)]
             Nk = [np.take(nrm1[:, k], qfull) for k in range(3)]
@@ -590,6 +639,8 @@ def render(
                 E += cos / (r2 * np.sqrt(r2))
             light += (lighting.lamp_power * E * finite)[..., None] * np.float32(lighting.lamp_rgb)
     rad = cv2.multiply(alb, light)
+    if wet_gloss is not None:
+        rad += wet_gloss
     if emis_ss is not None:
         emis = cv2.resize(emis_ss, size, interpolation=cv2.INTER_AREA)
         rad += emis[..., None] * (np.float32([1.0, 0.8, 0.55]) * 0.5 + alb * 2.0)

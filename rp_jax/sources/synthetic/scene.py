@@ -33,6 +33,7 @@ from rp_jax import categories
 from rp_jax.sources.synthetic import ground_textures as gt
 from rp_jax.sources.synthetic import slow_changes as slow_changes_lib
 from rp_jax.sources.synthetic import textures as tx
+from rp_jax.sources.synthetic.conditions import CLIMATES
 from rp_jax.sources.synthetic.quads import (
     Material,
     QuadBuilder,
@@ -76,6 +77,7 @@ class Scene:
       textures: the lazily generated texture cache.
       slow_changes: the world's slow changes over the years (``slow_changes.SlowWorld``),
         None (the default) for a world that stays as built.
+      climate: as given to ``build_scene`` (``conditions.CLIMATES``).
     """
 
     seed: int
@@ -99,6 +101,7 @@ class Scene:
     textures: TextureCache
     n_planes: int
     slow_changes: SlowWorld | None = None
+    climate: str = "latitude"
 
     @property
     def drivable_y(self) -> dict:
@@ -170,6 +173,7 @@ def build_scene(
     lanes: int = 2,
     building_height: tuple[float, float] | None = None,
     slow_changes: SlowChanges | None = None,
+    climate: str = "latitude",
     **kwargs,
 ) -> Scene:
     """Builds a deterministic synthetic street.
@@ -186,6 +190,9 @@ def build_scene(
       slow_changes: optional ``slow_changes.SlowChanges``: the world built is the world on
         its reference date, and new tenants, repaints, new signs and growing and replanted
         trees change it after (from streams of their own: the world built is the same).
+      climate: its temperatures, snow and whether rain freezes (``conditions.CLIMATES``:
+        "latitude", as the presets' worlds were first rendered, or "local", the place's
+        own climate normals where ``conditions.CLIMATE_NORMALS`` has them).
       **kwargs: reserved; unknown keys raise.
 
     Returns:
@@ -195,6 +202,8 @@ def build_scene(
         raise ValueError(f"build_scene: unknown kind {kind!r}; expected 'street'")
     if kwargs:
         raise TypeError(f"build_scene: unexpected arguments {sorted(kwargs)}")
+    if climate not in CLIMATES:
+        raise ValueError(f"build_scene: climate must be one of {CLIMATES}, got {climate!r}")
     rng = np.random.default_rng([seed, 1])
     veg = float(np.clip(vegetation, 0.0, 1.0))
     tc = TextureCache()
@@ -548,4 +557,5 @@ def build_scene(
         textures=tc,
         n_planes=plane[0],
         slow_changes=slow_world,
+        climate=climate,
     )

@@ -30,7 +30,13 @@ from rp_jax.sources.synthetic.scene import Scene
 __all__ = [
     "N_CAR_VARIANTS",
     "N_PEOPLE_VARIANTS",
+    "OWN_CAR_LENGTH_M",
+    "OWN_CAR_WIDTH_M",
+    "PassingCar",
     "add_car",
+    "car_headlamps",
+    "headlamps",
+    "passing_cars",
     "dynamic_quads",
     "parked_car",
     "parking_occupancy",
@@ -261,6 +267,88 @@ def _traffic_rate(hour: float) -> float:
     return 0.01 + 0.04 * (6 < hour < 22) + 0.06 * day
 
 
+@dataclasses.dataclass(frozen=True)
+class PassingCar:
+    """A car driving through the street at an instant: centre (x, y), ``direction`` (+1
+    east, -1 west) and its model (``variant``)."""
+
+    x: float
+    y: float
+    direction: float
+    variant: int
+
+    @property
+    def length(self) -> float:
+        return _CAR_SHAPES[self.variant % len(_CAR_SHAPES)][0]
+
+    @property
+    def width(self) -> float:
+        return _CAR_SHAPES[self.variant % len(_CAR_SHAPES)][1]
+
+
+def passing_cars(scene: Scene, when: dt.datetime) -> list[PassingCar]:
+    """The cars driving through the street at ``when``: spawned per 60 s window at the
+    hour's rate (``_traffic_rate``), each at its own constant speed, in both lanes."""
+    hour = when.hour + when.minute / 60.0 + when.second / 3600.0
+    t = when.timestamp()
+    x_lo, x_hi = scene.x_range
+    span = x_hi - x_lo
+    win = 60.0
+    k_now = int(np.floor(t / win))
+    out = []
+    for lane, direction in (("eastbound", 1.0), ("westbound", -1.0)):
+        y = scene.lanes_y[lane]
+        n_back = int(np.ceil(span / 7.0 / win)) + 1
+        for k in range(k_now - n_back, k_now + 1):
+            r = _hash_rng(scene.seed, 22, int(direction > 0), k)
+            rate = _traffic_rate(((k * win - t) / 3600.0 + hour) % 24)
+            for _ in range(int(r.poisson(rate * win))):
+                t0, v, variant = (
+                    k * win + r.random() * win,
+                    r.uniform(7.0, 13.0),
+                    int(r.integers(0, N_CAR_VARIANTS)),
+                )
+                if t < t0:
+                    continue
+                d = v * (t - t0)
+                if d > span:
+                    continue
+                x = x_lo + d if direction > 0 else x_hi - d
+                out.append(PassingCar(float(x), float(y), direction, variant))
+    return out
+
+
+# Where a car's dipped headlamps sit: at the front, this far either side of its centre line
+# and this high above the road (a passenger car's, about).
+HEADLAMP_INSET_M = 0.25
+HEADLAMP_HEIGHT_M = 0.65
+
+
+# The camera's own car (RobotCar's Nissan LEAF: 4.45 m long, 1.77 m wide), centred on the
+# vehicle frame's origin.
+OWN_CAR_LENGTH_M, OWN_CAR_WIDTH_M = 4.45, 1.77
+
+
+def car_headlamps(x: float, y: float, heading: float, length: float, width: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A car's two headlamps: ``(positions (2, 3), forward directions (2, 3))`` of a car
+    centred at (x, y) heading ``heading`` (radians from +x, counter-clockwise)."""
+    fwd = np.array([np.cos(heading), np.sin(heading), 0.0])
+    left = np.array([-fwd[1], fwd[0], 0.0])
+    front = np.array([x, y, HEADLAMP_HEIGHT_M]) + fwd * length / 2
+    pos = np.stack([front + side * (width / 2 - HEADLAMP_INSET_M) * left for side in (1.0, -1.0)])
+    return pos, np.stack([fwd, fwd])
+
+
+def headlamps(cars: list[PassingCar]) -> tuple[np.ndarray, np.ndarray]:
+    """Every car's two headlamps: ``(positions (2N, 3), forward directions (2N, 3))``."""
+    lamps = [car_headlamps(c.x, c.y, 0.0 if c.direction > 0 else np.pi, c.length, c.width)
+             for c in cars]
+    if not lamps:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return np.concatenate([p for p, _ in lamps]), np.concatenate([f for _, f in lamps])
+
+
 def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[int]]:
     """Parked cars (stays of the street's dwell times), passing cars and people (per instant).
 
@@ -289,35 +377,15 @@ def dynamic_quads(scene: Scene, when: dt.datetime) -> tuple[QuadSet, list, list[
             cars.append(q)
             boxes += list(b)
         obj += 1
-    # Passing cars: spawned per 60 s window, moving at constant speed through the street.
+    for car in passing_cars(scene, when):
+        q, b = _car_instance(tc, car.x, car.y, car.direction, car.variant, obj, moving=True)
+        cars.append(q)
+        boxes += list(b)
+        obj += 1
+    # People walking along both sidewalks, spawned per 120 s window.
     t = when.timestamp()
     x_lo, x_hi = scene.x_range
     span = x_hi - x_lo
-    win = 60.0
-    k_now = int(np.floor(t / win))
-    for lane, direction in (("eastbound", 1.0), ("westbound", -1.0)):
-        y = scene.lanes_y[lane]
-        n_back = int(np.ceil(span / 7.0 / win)) + 1
-        for k in range(k_now - n_back, k_now + 1):
-            r = _hash_rng(scene.seed, 22, int(direction > 0), k)
-            rate = _traffic_rate(((k * win - t) / 3600.0 + hour) % 24)
-            for _ in range(int(r.poisson(rate * win))):
-                t0, v, variant = (
-                    k * win + r.random() * win,
-                    r.uniform(7.0, 13.0),
-                    int(r.integers(0, N_CAR_VARIANTS)),
-                )
-                if t < t0:
-                    continue
-                d = v * (t - t0)
-                if d > span:
-                    continue
-                x = x_lo + d if direction > 0 else x_hi - d
-                q, b = _car_instance(tc, x, y, direction, variant, obj, moving=True)
-                cars.append(q)
-                boxes += list(b)
-                obj += 1
-    # People walking along both sidewalks, spawned per 120 s window.
     pwin = 120.0
     k_now = int(np.floor(t / pwin))
     rate = 0.004 + 0.03 * (7 < hour < 21)

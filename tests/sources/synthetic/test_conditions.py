@@ -4,6 +4,7 @@ import datetime as dt
 import itertools
 
 import numpy as np
+import pytest
 
 from rp_jax.sources.synthetic import conditions as cond
 from rp_jax.sources.synthetic.ground_textures import ground_texture
@@ -86,7 +87,47 @@ def test_a_documented_sky_overrides_the_drawn_weather():
         c = conditions.conditions_at(s, 40.44, -80.0, when, "clear")
         assert c.weather == "clear" and c.cloud_cover < 0.1 and c.sun_rgb.sum() > 0
     with pytest.raises(ValueError, match="weather"):
-        conditions.conditions_at(0, 40.44, -80.0, when, "snow")
+        conditions.conditions_at(0, 40.44, -80.0, when, "hail")
+
+
+def test_a_documented_snowy_day_has_at_least_a_light_cover_and_keeps_a_deeper_one():
+    oxford_feb = dt.datetime(2015, 2, 3, 8, 45, tzinfo=dt.UTC)
+    for s in range(6):
+        drawn = cond.conditions_at(s, *OXFORD, oxford_feb, climate="local")
+        snowy = cond.conditions_at(s, *OXFORD, oxford_feb, "snow", climate="local")
+        assert snowy.snow == max(drawn.snow, cond.DOCUMENTED_SNOW_LEVEL) and snowy.snow_pattern
+        assert snowy.weather == "overcast" and not snowy.wet
+    pittsburgh = dt.datetime(2010, 12, 21, 11, 0, tzinfo=dt.timezone(dt.timedelta(hours=-5)))
+    deep = cond.conditions_at(5, *PITTSBURGH, pittsburgh)
+    assert cond.conditions_at(5, *PITTSBURGH, pittsburgh, "snow").snow == deep.snow >= 2
+
+
+OXFORD = (51.7520, -1.2577)
+
+
+def test_oxford_has_its_maritime_climate_and_pittsburgh_its_continental_one():
+    def monthly_mean(place, month):
+        days = [dt.date(2014, month, d) for d in range(1, 29)]
+        return np.mean([cond._climate_temperature(
+            np.array([cond._day_of_year(d, place[0])]), *place)[0] for d in days])
+
+    # Radcliffe Meteorological Station: about 5 C in January, 18 C in July, 11.06 C a year.
+    assert 3.5 < monthly_mean(OXFORD, 1) < 6.5 and 16.0 < monthly_mean(OXFORD, 7) < 19.5
+    year = np.mean([monthly_mean(OXFORD, m) for m in range(1, 13)])
+    assert abs(year - 11.06) < 0.5
+    # Pittsburgh as before: about -2 C in January and 23 C in July.
+    assert -3.5 < monthly_mean(PITTSBURGH, 1) < -0.5 and 21.5 < monthly_mean(PITTSBURGH, 7) < 24.5
+    # So Oxford's winters seldom freeze: rain falls as rain on most wet winter days, and
+    # snow lies on few days.
+    days = list(_winter_days(2014))
+    frozen = np.mean([cond.air_temperature(d, *OXFORD, climate="local") < 0.0 for d in days])
+    covered = np.mean([cond.snow_state(3, d, *OXFORD, climate="local")[0] > 0 for d in days])
+    assert frozen < 0.25 and covered < 0.25
+    # The latitude's climate (the legacy presets' worlds) is the continental one: frozen
+    # most of that winter.
+    assert np.mean([cond.air_temperature(d, *OXFORD) < 0.0 for d in days]) > 0.5
+    with pytest.raises(ValueError, match="climate"):
+        cond.air_temperature(days[0], *OXFORD, climate="maritime")
 
 
 

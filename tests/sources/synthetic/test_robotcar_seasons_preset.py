@@ -119,12 +119,18 @@ def test_nights_are_darker_than_the_reference(layout):
         return float(np.mean([cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).mean()
                               for p in (layout / "images" / condition).glob("*/*.jpg")]))
 
-    assert mean_luma("night") < 0.5 * mean_luma(rcs.REFERENCE_CONDITION)
+    # The camera at its longest exposure, short of the light its exposure aims at: about half
+    # the overcast day's grey level (the headlamps of the car and of the passing cars add a
+    # tenth or so to the night's).
+    assert mean_luma("night") < 0.6 * mean_luma(rcs.REFERENCE_CONDITION)
 
 
 def test_conditions_name_the_weather_they_force_and_every_condition_is_planned():
     assert set(plan_rcs.CONDITION_WEATHER) == set(rcs.CONDITIONS)
-    assert plan_rcs.CONDITION_WEATHER["snow"] is None  # the world's winter decides, not fiat
+    # Documented in the recording as the other forced skies are: Oxford's climate alone would
+    # put no snow on the traversal's day.
+    assert plan_rcs.CONDITION_WEATHER["snow"] == "snow"
+    assert plan_rcs.CONDITION_WEATHER["night-rain"] == "rain"
     small = presets.plan("robotcar_seasons", "/tmp/unused", size="small")
     assert {j.image_path.parts[-3] for j in small.jobs} == set(rcs.CONDITIONS)
 
