@@ -314,3 +314,22 @@ def test_a_moving_camera_s_night_is_blurred_and_a_distorted_one_refused(scene):
     bent = _webcam(scene, 160, 120, distortion=np.array([-0.2, 0.05, 0.0, 0.0]))
     with pytest.raises(NotImplementedError, match="undistorted"):
         render(scene, bent, night, velocity=np.array([1.0, 0.0, 0.0]), **kw)
+
+
+def test_the_car_s_headlamps_light_the_road_ahead_at_night_where_the_lighting_has_them(scene):
+    from rp_jax.sources.synthetic import camera_effects, photometry
+
+    # A camera on the car, looking ahead along the eastbound lane, at night, with the
+    # RobotCar camera's long exposure and gain (a webcam at its gain limit sees no road).
+    y = scene.lanes_y["eastbound"]
+    view = look_at((20.0, y, 1.6), (40.0, y, 0.0), width=96, height=72, fov_deg=60.0)
+    night = dt.datetime(2024, 1, 9, 23, 0, tzinfo=TZ)
+    car = (18.0, y, 0.0)
+    kw = dict(seed=3, sensor=camera_effects.GRASSHOPPER2_11HZ)
+    lit = render(scene, view, night, vehicle=car, lighting=photometry.EN_13201, **kw)
+    dark = render(scene, view, night, vehicle=None, lighting=photometry.EN_13201, **kw)
+    near = lit.category[48:] == categories.GROUND  # the road a few metres ahead
+    assert near.mean() > 0.9
+    assert lit.rgb[48:][near].mean() > 2.0 * dark.rgb[48:][near].mean()
+    legacy = [render(scene, view, night, vehicle=v, **kw) for v in (car, None)]
+    np.testing.assert_array_equal(legacy[0].rgb, legacy[1].rgb)  # no headlamps in LEGACY
