@@ -427,15 +427,13 @@ def _vehicle_lights(scene: Scene, when: dt.datetime, vehicle, C: np.ndarray,
     return pos[keep], fwd[keep]
 
 
-def _night_lights_on(Xw: np.ndarray, finite: np.ndarray, nrm: np.ndarray, qfull: np.ndarray,
-                     mat: np.ndarray, C: np.ndarray, lamps: np.ndarray, headlamps: tuple,
+def _night_lights_on(X: list, Nk: list, finite: np.ndarray, qfull: np.ndarray, mat: np.ndarray,
+                     C: np.ndarray, lamps: np.ndarray, headlamps: tuple,
                      lighting: photometry.StreetLighting, light: np.ndarray, *,
                      wet: bool) -> np.ndarray | None:
     """Adds the headlamps' light to ``light`` (in place) and returns the wet road's gloss
-    (H, W, 3; None where the road is dry or the lighting has none), ``night_lights``."""
-    nrm1 = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)
-    X = [np.ascontiguousarray(Xw[..., k]) for k in range(3)]
-    Nk = [np.take(nrm1[:, k], qfull) for k in range(3)]
+    (H, W, 3; None where the road is dry or the lighting has none), ``night_lights``; ``X``
+    and ``Nk``: each pixel's surface point and normal, three arrays each."""
     pos, fwd = headlamps
     if len(pos):
         E = night_lights.headlamp_illuminance(X, Nk, pos, fwd)
@@ -620,16 +618,16 @@ def render(
     wet_gloss = None
     if cond.lamps_on:
         Xw, finite = _world_points(Kc_inv, R, t, depth, 1)
-        near = scene.lamps[np.linalg.norm(scene.lamps - C, axis=1) < 60.0] if len(
+        near = scene.lamps[np.linalg.norm(scene.lamps - C, axis=1) < night_lights.REACH_M] if len(
             scene.lamps) else np.zeros((0, 3))
+        nrm1 = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)
+        X = [np.ascontiguousarray(Xw[..., k]) for k in range(3)]
+        Nk = [np.take(nrm1[:, k], qfull) for k in range(3)]
         if lighting.vehicle_lights or lighting.wet_reflections:
-            lamps_on_road = _vehicle_lights(scene, when, vehicle, C, lighting)
-            wet_gloss = _night_lights_on(Xw, finite, nrm, qfull, mat, C, near, lamps_on_road,
+            wet_gloss = _night_lights_on(X, Nk, finite, qfull, mat, C, near,
+                                         _vehicle_lights(scene, when, vehicle, C, lighting),
                                          lighting, light, wet=cond.wet)
         if len(scene.lamps):
-            nrm1 = np.vstack([nrm, np.zeros((1, 3))]).astype(np.float32)
-            X = [np.ascontiguousarray(Xw[..., k]) for k in range(3)]
-            Nk = [np.take(nrm1[:, k], qfull) for k in range(3)]
             E = np.zeros((Hc, Wc), np.float32)
             for L in near.astype(np.float32):
                 d = [L[k] - X[k] for k in range(3)]  # towards the lamp
