@@ -84,7 +84,8 @@ MOUNTS = {
     "rear": CameraMount(offset=(-2.0, 0.0, 0.0), yaw_deg=180.0, pitch_deg=-5.0),
     "right": CameraMount(offset=(0.0, 0.6, 0.0), yaw_deg=90.0, pitch_deg=-5.0),
 }
-# The sky a condition names; None: drawn from the world's climatology for that day.
+# The sky a condition names ("snow": a snowy day, ``conditions.conditions_at``); None: drawn
+# from the world's climatology for that day.
 CONDITION_WEATHER = {
     rcs.REFERENCE_CONDITION: "overcast",
     "dawn": None,
