@@ -3,7 +3,7 @@
 The renderer's night (``render.render`` while the street lamps are on) lights every
 surface point ``X`` with normal ``N`` seen by a pixel with each street lamp (a point source
 of ``photometry.StreetLighting``'s intensity in every direction below it: inverse-square
-law and the cosine of incidence, in ``render``) and, where the lighting has them,
+law and the cosine of incidence, ``lamp_geometry``) and, where the lighting has them,
 
 - each dipped headlamp's (``photometry.low_beam_cd``: the passing cars', ``traffic
   .passing_cars``, and the camera's own car's), the same law with the intensity of the
@@ -12,8 +12,10 @@ law and the cosine of incidence, in ``render``) and, where the lighting has them
   lights towards the camera (``photometry.wet_road_specular``), which a Lambertian albedo
   does not give: bright streaks on the road under and beyond each light.
 
-No light here casts a shadow (nor do the street lamps'), and the lights are those within
-``REACH_M`` of the camera: beyond, a lamp's few lux fall below the night's noise.
+No light here casts a shadow, and the lights are those within ``REACH_M`` of the camera,
+the renderer's reach for its street lamps (beyond it a lamp gives a surface less than a
+quarter of a lux). A headlamp's hot spot still gives a few lux to a wall facing it 60 m
+away: the cut is an approximation, kept so that the lamps and the headlamps share it.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 
 from rp_jax.sources.synthetic import photometry
 
-__all__ = ["REACH_M", "headlamp_illuminance", "wet_road_radiance"]
+__all__ = ["REACH_M", "lamp_geometry", "headlamp_illuminance", "wet_road_radiance"]
 
 REACH_M = 60.0
 # Added to r² (m²) so that a point on a lamp's own head stays finite.
@@ -33,6 +35,18 @@ def _towards(L: np.ndarray, X: list[np.ndarray]) -> tuple[list[np.ndarray], np.n
     """The vector from each point to the light ``L`` and the squared distance (floored)."""
     d = [np.float32(L[k]) - X[k] for k in range(3)]
     return d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + np.float32(_R2_FLOOR)
+
+
+def lamp_geometry(X: list[np.ndarray], N: list[np.ndarray], lamps: np.ndarray) -> np.ndarray:
+    """Sum over point sources at ``lamps`` (L, 3) of cos(incidence) / r² on points ``X`` with
+    normals ``N``: times a lamp's intensity, the illuminance of isotropic lamps."""
+    E = np.zeros_like(X[0])
+    for L in np.asarray(lamps, np.float32):
+        d, r2 = _towards(L, X)
+        cos = d[0] * N[0] + d[1] * N[1] + d[2] * N[2]
+        np.maximum(cos, 0.0, out=cos)
+        E += cos / (r2 * np.sqrt(r2))
+    return E
 
 
 def _low_beam_towards(d: list[np.ndarray], r: np.ndarray, forward: np.ndarray) -> np.ndarray:

@@ -127,9 +127,10 @@ WORLD_VERSION = 4
 #    RobotCar's Grasshopper2 at 11.1 Hz with its exposure limit and motion blur
 #    (``camera_effects.GRASSHOPPER2_11HZ``).
 # robotcar_day renders its nights as robotcar_seasons' version 5 does, from its first version.
-# 6: in both, the passing cars' and the camera's own car's dipped headlamps light the street
-#    at night, and in rain at night the wet road mirrors the lamps and headlamps
-#    (``night_lights``).
+# 6: in both, Oxford's own climate (``conditions.CLIMATE_NORMALS``; the latitude's froze
+#    their winters), the passing cars' and the camera's own car's dipped headlamps at night
+#    and, in rain at night, the wet road mirroring the lamps and headlamps
+#    (``night_lights``); robotcar_seasons' snow traversal a documented snowy day.
 _PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6}
 
 

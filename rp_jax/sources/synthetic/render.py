@@ -628,13 +628,7 @@ def render(
                                          _vehicle_lights(scene, when, vehicle, C, lighting),
                                          lighting, light, wet=cond.wet)
         if len(scene.lamps):
-            E = np.zeros((Hc, Wc), np.float32)
-            for L in near.astype(np.float32):
-                d = [L[k] - X[k] for k in range(3)]  # towards the lamp
-                r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + np.float32(0.3)
-                cos = d[0] * Nk[0] + d[1] * Nk[1] + d[2] * Nk[2]
-                np.maximum(cos, 0.0, out=cos)
-                E += cos / (r2 * np.sqrt(r2))
+            E = night_lights.lamp_geometry(X, Nk, near)
             light += (lighting.lamp_power * E * finite)[..., None] * np.float32(lighting.lamp_rgb)
     rad = cv2.multiply(alb, light)
     if wet_gloss is not None:

@@ -318,8 +318,9 @@ def passing_cars(scene: Scene, when: dt.datetime) -> list[PassingCar]:
     return out
 
 
-# Where a car's dipped headlamps sit: at the front, this far either side of its centre line
-# and this high above the road (a passenger car's, about).
+# Where a car's dipped headlamps sit: at the front, this far in from its sides and this high
+# above the road, within UN ECE Regulation 48's installation limits (the illuminating
+# surface's outer edge at most 400 mm from the car's side, 500-1,200 mm above the road).
 HEADLAMP_INSET_M = 0.25
 HEADLAMP_HEIGHT_M = 0.65
 
