@@ -89,13 +89,20 @@ def _spec_location(dataset: str) -> tuple[float, float] | None:
 
 
 @functools.lru_cache(maxsize=64)
-def _synthetic_scene(scene_json: Path) -> tuple[int, float, float] | None:
-    """(scene seed, latitude, longitude) of a synthetic Webcam scene; None for a real one."""
+def _synthetic_scene(scene_json: Path) -> tuple[int, float, float, str] | None:
+    """(scene seed, latitude, longitude, climate) of a synthetic Webcam scene; None for a
+    real one. The climate is the scene's ``extra`` ``("climate", ...)`` entry, which the
+    renderer drew the weather in; scenes written without one had the latitude's."""
     try:
         info = json.loads(scene_json.read_text())
-        return (int(info["synthetic"]["scene"]["seed"]), float(info["latitude"]),
-                float(info["longitude"]))
-    except (OSError, ValueError, KeyError, TypeError):
+        scene = info["synthetic"]["scene"]
+        climate = "latitude"
+        for entry in scene.get("extra") or ():
+            if isinstance(entry, list | tuple) and len(entry) == 2 and entry[0] == "climate":
+                climate = str(entry[1])
+        return (int(scene["seed"]), float(info["latitude"]), float(info["longitude"]),
+                climate)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
 
 
@@ -141,8 +148,10 @@ def _synthetic_weather(capture: Capture) -> tuple[float, float, float, int] | No
         return None if c is None else _schema(c)
     from rp_jax.sources.synthetic import conditions  # the world that drew the weather
 
-    seed, lat, lon = scene
-    return _schema(conditions.conditions_at(seed, lat, lon, capture.time))
+    seed, lat, lon, climate = scene
+    if climate not in conditions.CLIMATES:
+        return None
+    return _schema(conditions.conditions_at(seed, lat, lon, capture.time, climate=climate))
 
 
 def weather_record(image_path: str | Path, when) -> dict[str, float] | None:

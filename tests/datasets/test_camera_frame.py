@@ -10,7 +10,8 @@ from rp_jax.datasets import camera_frame
 from rp_jax.sources.synthetic import output_folder, presets
 
 
-def _mark(root, preset, world=presets.WORLD_VERSION):
+def _mark(root, preset, world=None):
+    world = presets.world_version(preset) if world is None else world
     output_folder.mark(root, {"generator": output_folder.GENERATOR, "preset": preset,
                               "size": "tiny", "seed": 2, "world": world})
 
@@ -29,7 +30,7 @@ def test_synthetic_frames_get_the_renderers_rotation(tmp_path, preset):
 def test_another_world_version_or_no_marker_is_unknown(tmp_path):
     jobs = presets.plan("webcam_clipart", tmp_path, size="tiny", seed=2).jobs
     assert camera_frame.camera_rotation(jobs[0].image_path) is None  # a download: no marker
-    _mark(tmp_path, "webcam_clipart", world=presets.WORLD_VERSION - 1)
+    _mark(tmp_path, "webcam_clipart", world=presets.world_version("webcam_clipart") - 1)
     camera_frame._planned_rotations.cache_clear()
     camera_frame._world_root.cache_clear()
     assert camera_frame.camera_rotation(jobs[0].image_path) is None

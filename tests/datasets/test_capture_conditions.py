@@ -70,3 +70,30 @@ def test_no_cmu_weather_without_this_worlds_marker(planned, tmp_path):
     assert (older["weather"] == -1).all()
     when = dt.datetime(2011, 3, 4, 12, tzinfo=dt.UTC)
     assert capture_conditions.synthetic_cmu_conditions(tmp_path / "a.jpg", when) is None
+
+
+def test_webcam_weather_is_drawn_in_the_scenes_own_climate(tmp_path):
+    """``webcam_clipart``'s scenes are in their cities' own climates: the weather read back
+    from a scene's ``scene.json`` is the renderer's, also on a day the latitude's climate
+    put snow on (Paris in January, world seed 0)."""
+    from rp_jax.sources.synthetic import write_layout
+
+    jobs = presets.plan("webcam_clipart", tmp_path, size="full", seed=0).jobs
+    paris = [j for j in jobs if j.image_path.parent.name == "scene_06"]
+    january = [j for j in paris if j.when.month == 1]
+    assert january and dict(paris[0].scene.extra)["climate"] == "local"
+    scene = paris[0].scene
+    write_layout.write_webcam_scene_sidecar(
+        paris[0].image_path.parent, timezone="Europe/Paris", latitude=scene.latitude,
+        longitude=scene.longitude,
+        synthetic={"scene": dataclasses.asdict(scene)})
+    capture_conditions._synthetic_scene.cache_clear()
+    for job in january[:3] + paris[-3:]:
+        drawn = conditions.conditions_at(scene.seed, scene.latitude, scene.longitude, job.when,
+                                         climate="local")
+        got = capture_conditions.weather_record(job.image_path, job.when)
+        assert got["snow_cover"] == np.float32(drawn.snow / 4.0)
+        assert capture_conditions.WEATHERS[int(got["weather"])] == drawn.weather
+    when = january[0].when
+    assert conditions.conditions_at(scene.seed, scene.latitude, scene.longitude, when).snow > 0
+    assert capture_conditions.weather_record(january[0].image_path, when)["snow_cover"] == 0.0

@@ -158,7 +158,7 @@ def _synthetic_other_seed(tmp: Path):
     (root / "_synthetic").mkdir(parents=True)
     (root / "_synthetic" / "generation.json").write_text(json.dumps(
         {"generator": "rp_jax.sources.synthetic", "preset": "webcam_clipart", "size": "tiny",
-         "seed": 0, "world": presets.WORLD_VERSION, "frames": 1}))
+         "seed": 0, "world": presets.world_version("webcam_clipart"), "frames": 1}))
     _webcam_download(root, {"scene_00": DAYS[:1]})
     return (lambda: synthetic_cli.main(["webcam_clipart", str(root), "--size", "tiny",
                                         "--seed", "1", "--quiet"])), [root]

@@ -178,7 +178,31 @@ CLIMATES = ("latitude", "local")
 #   maximum and minimum about 8 and 2 C in January, 23 and 13 C in July; 1991-2020). The
 #   latitude's sinusoid gave about -13 C in January, so that the RobotCar-like worlds froze
 #   all winter: no rain fell on the night-rain and rain traversals, snow lay for months.
-CLIMATE_NORMALS = {(51, -2): (11.1, 6.5)}
+# - The eight Webcam Clip Art-like cities (``plan_webcam.WEBCAM_CITIES``), from their
+#   stations' 1991-2020 normals of the daily mean temperature in January and in July,
+#   rounded to the half degree; the sinusoid passes through both (its mean is their
+#   midpoint, a little above the annual mean where summers are long, as in Madrid). NOAA
+#   NCEI's U.S. Climate Normals: Pittsburgh International Airport (January -1.5 C, July
+#   23 C), Boston Logan (-1, 23.5), Chicago O'Hare (-4, 23.5), Denver International
+#   Airport (-0.5, 23.5) and Seattle-Tacoma (6, 19.5: daily maximum and minimum 48 and
+#   38 F in January, 77 and 57 F in July); the Met Office's London Heathrow (5.5, 19);
+#   Meteo-France's Paris-Montsouris (5.5, 21); AEMET's Madrid-Retiro (6.5, 26). The
+#   latitude's sinusoid is close for the four continental North American cities and far too
+#   cold for the four maritime or Mediterranean ones (January about -13 C in London, -10 C
+#   in Paris, -8 C in Seattle, -1.5 C in Madrid): snow lay on their winter capture days,
+#   in Paris still on a day in April.
+CLIMATE_NORMALS = {
+    (51, -2): (11.1, 6.5),  # Oxford: annual mean, half-range
+    # (January + July) / 2, (July - January) / 2:
+    (40, -80): (10.75, 12.25),  # Pittsburgh
+    (42, -72): (11.25, 12.25),  # Boston
+    (41, -88): (9.75, 13.75),  # Chicago
+    (39, -105): (11.5, 12.0),  # Denver
+    (47, -123): (12.75, 6.75),  # Seattle
+    (51, -1): (12.25, 6.75),  # London
+    (48, 2): (13.25, 7.75),  # Paris
+    (40, -4): (16.25, 9.75),  # Madrid
+}
 
 
 def _climate_temperature(doy: np.ndarray, latitude: float,

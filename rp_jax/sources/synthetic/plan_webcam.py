@@ -203,14 +203,16 @@ def _webcam_camera(scene, facade_azimuth: float, rng: np.random.Generator, width
 
 
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
-    """The frames of the ``webcam_clipart`` preset and its metadata writer."""
+    """The frames of the ``webcam_clipart`` preset and its metadata writer: its cities in
+    their own climates (``conditions.CLIMATE_NORMALS``; the years presets keep the
+    latitude's, with which their results were made, on their May-August days)."""
     spec = _WEBCAM_SIZES[size]
     return _plan(
         "webcam_clipart",
         out_dir,
         size,
         seed,
-        webcam_sites(seed, spec.scenes),
+        webcam_sites(seed, spec.scenes, (("climate", "local"),)),
         spec.width,
         spec.height,
         days_of=lambda i: webcam_days(i, spec.days, seed),

@@ -143,3 +143,47 @@ def test_the_night_sky_sets_the_night_s_ambient_light_and_the_city_glow():
     np.testing.assert_allclose(
         cond.conditions_at(3, 51.75, -1.26, noon, night_sky=0.0).sky_rgb,
         cond.conditions_at(3, 51.75, -1.26, noon).sky_rgb, rtol=1e-2)
+
+
+WEBCAM_NORMALS = {  # stations' 1991-2020 January and July daily means, deg C (conditions)
+    "Pittsburgh": (-1.5, 23.0), "Boston": (-1.0, 23.5), "Chicago": (-4.0, 23.5),
+    "Denver": (-0.5, 23.5), "Seattle": (6.0, 19.5), "London": (5.5, 19.0),
+    "Paris": (5.5, 21.0), "Madrid": (6.5, 26.0),
+}
+
+
+def _monthly_mean(lat, lon, month, climate):
+    days = [dt.date(2014, month, d) for d in range(1, 29)]
+    local = lon if climate == "local" else None
+    return np.mean([cond._climate_temperature(
+        np.array([cond._day_of_year(d, lat)]), lat, local)[0] for d in days])
+
+
+def test_the_webcam_cities_have_their_own_winters_and_summers():
+    from rp_jax.sources.synthetic.plan_webcam import WEBCAM_CITIES
+
+    for city, lat, lon, _, _ in WEBCAM_CITIES:
+        january, july = WEBCAM_NORMALS[city]
+        assert abs(_monthly_mean(lat, lon, 1, "local") - january) < 1.0, city
+        assert abs(_monthly_mean(lat, lon, 7, "local") - july) < 1.0, city
+    # The latitude's continental sinusoid: close for Chicago, far too cold a winter for
+    # the maritime cities.
+    chicago, london = WEBCAM_CITIES[2], WEBCAM_CITIES[5]
+    assert abs(_monthly_mean(*chicago[1:3], 1, "latitude") - WEBCAM_NORMALS["Chicago"][0]) < 1.5
+    assert _monthly_mean(*london[1:3], 1, "latitude") < WEBCAM_NORMALS["London"][0] - 15.0
+
+
+def test_london_and_paris_seldom_keep_snow_and_chicago_often_does():
+    from rp_jax.sources.synthetic.plan_webcam import WEBCAM_CITIES
+
+    where = {c[0]: c[1:3] for c in WEBCAM_CITIES}
+    days = list(_winter_days(2013))
+
+    def covered(city, climate):
+        return np.mean([cond.snow_state(s, d, *where[city], climate=climate)[0] > 0
+                        for s in range(3) for d in days])
+
+    assert covered("London", "local") < 0.15 and covered("Paris", "local") < 0.15
+    assert covered("Chicago", "local") > 0.3
+    # In the latitude's climate London was under snow for much of the winter.
+    assert covered("London", "latitude") > 0.4
