@@ -189,7 +189,7 @@ CLIMATES = ("latitude", "local")
 #   Meteo-France's Paris-Montsouris (5.5, 21); AEMET's Madrid-Retiro (6.5, 26). The
 #   latitude's sinusoid is close for the four continental North American cities and far too
 #   cold for the four maritime or Mediterranean ones (January about -13 C in London, -10 C
-#   in Paris, -8 C in Seattle, -1.5 C in Madrid): snow lay on their winter capture days,
+#   in Paris, -9 C in Seattle, -1.5 C in Madrid): snow lay on their winter capture days,
 #   in Paris still on a day in April.
 CLIMATE_NORMALS = {
     (51, -2): (11.1, 6.5),  # Oxford: annual mean, half-range
