@@ -69,7 +69,10 @@ def export(workdir: str | os.PathLike, name: str, *, dataset: str, data_config: 
     sample = {k: np.asarray(v[: shipped.SAMPLE_SIZE]) for k, v in cols.items()}
     pred = sample_predictions(rp, sample).astype(np.float32)
     folder = shipped.MODELS_DIR / name
-    files.write_json(folder / "config.json", rp.config.to_dict(), default=list)
+    config = rp.config.to_dict()
+    # Where the maintainer's run read its data means nothing on a user's machine.
+    config["input"]["data_dir"] = config["input"]["manual_dir"] = ""
+    files.write_json(folder / "config.json", config, default=list)
     files.write_json(folder / "schedule.json", rp.schedule.to_dict(), default=list)
     with files.replacing(folder / "params.npz") as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **shipped.flatten(rp.params))

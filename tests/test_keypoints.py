@@ -317,4 +317,6 @@ def test_model_json_says_what_each_model_reads_and_its_resolution():
         assert about["time_inputs"] == TIME_INPUTS[config["model"]["time_fields"]]
         w, h = about["trained_image_size"]
         assert 100 <= h < w <= 2000, name
+        # No folder of the maintainer's machine ships (ship_models blanks them).
+        assert config["input"]["data_dir"] == config["input"]["manual_dir"] == "", name
     assert ship_models.trained_image_size([[640, 480], [640, 480], [320, 240]]) == [640, 480]
