@@ -203,6 +203,52 @@ CLIMATE_NORMALS = {
     (48, 2): (13.25, 7.75),  # Paris
     (40, -4): (16.25, 9.75),  # Madrid
 }
+# - The many-worlds webcams' cities (``plan_worlds.WORLD_CITIES`` and ``UNSEEN_CITIES``):
+#   the mean daily temperature of their coldest and their warmest month (January and July,
+#   the other way round south of the equator) in their national weather services' normals
+#   (1991-2020 where published, as the WMO's Climatological Normals collect them), rounded
+#   to the half degree; in the tropics the two differ by a degree or two. Over a winter
+#   (20 December to the end of February, June to August in the south), the latitude's
+#   sinusoid gave Dublin, Berlin and Stockholm means of -12 to -18 C with snow on every
+#   day, Rome, Istanbul, Athens and Auckland snow on a third to two thirds of the days,
+#   and Bogota, Nairobi and Singapore means near 38 C. Precipitation is not the place's
+#   own (``_regional_winter``: the same wet-day rate and amounts everywhere), so a dry
+#   winter such as Beijing's is snowier here than it is.
+_COLDEST_WARMEST = {
+    (43, -80): (-4.0, 22.0),  # Toronto
+    (44, -94): (-9.0, 23.5),  # Minneapolis
+    (33, -113): (13.5, 35.0),  # Phoenix
+    (34, -119): (14.5, 23.0),  # Los Angeles
+    (61, -150): (-8.0, 15.0),  # Anchorage
+    (19, -100): (14.0, 17.5),  # Mexico City
+    (4, -75): (13.5, 14.0),  # Bogota
+    (-24, -47): (16.0, 23.0),  # Sao Paulo
+    (-35, -59): (11.0, 24.5),  # Buenos Aires
+    (53, -7): (5.5, 15.5),  # Dublin
+    (52, 13): (1.0, 19.5),  # Berlin
+    (41, 12): (8.0, 24.5),  # Rome
+    (59, 10): (-3.0, 17.0),  # Oslo
+    (60, 24): (-4.0, 17.5),  # Helsinki
+    (41, 28): (6.0, 23.5),  # Istanbul
+    (30, 31): (14.0, 28.0),  # Cairo
+    (-2, 36): (15.5, 19.0),  # Nairobi
+    (-34, 18): (12.5, 21.5),  # Cape Town
+    (25, 55): (19.5, 36.0),  # Dubai
+    (19, 72): (24.5, 28.0),  # Mumbai
+    (1, 103): (26.5, 28.0),  # Singapore
+    (39, 116): (-3.0, 27.0),  # Beijing
+    (35, 139): (5.5, 26.0),  # Tokyo
+    (-34, 151): (13.0, 23.0),  # Sydney
+    (-37, 174): (11.0, 19.5),  # Auckland
+    (45, -74): (-9.5, 21.5),  # Montreal
+    (59, 18): (-1.0, 18.0),  # Stockholm
+    (37, 23): (10.0, 28.0),  # Athens
+    (37, 126): (-2.0, 25.5),  # Seoul
+    (-38, 144): (10.5, 21.0),  # Melbourne
+    (-34, -71): (8.5, 21.0),  # Santiago
+}
+CLIMATE_NORMALS.update({cell: ((cold + warm) / 2.0, (warm - cold) / 2.0)
+                        for cell, (cold, warm) in _COLDEST_WARMEST.items()})
 
 
 def _climate_temperature(doy: np.ndarray, latitude: float,

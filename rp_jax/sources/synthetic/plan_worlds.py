@@ -6,11 +6,12 @@ webcams. These presets write the Webcam Clip Art layout of ``plan_webcam`` (same
 schedule T = 21 slots 8:00-18:00, M = 4 days), but every webcam of a world seed stands in
 a city drawn from a pool, on a street of its own type, on days of its own seasons:
 
-* the city (latitude, longitude, time zone: the sun's path, the seasons, snow, the
-  schedule's local clock) from ``WORLD_CITIES`` (``webcam_worlds``) or from
-  ``UNSEEN_CITIES`` (``webcam_worlds_unseen``), pools that share no city with each other
-  or with ``plan_webcam.WEBCAM_CITIES`` (the shipped 7-scene models' cities), so that a
-  held-out world is new in its streets *and* its places;
+* the city (latitude, longitude, time zone: the sun's path, the seasons, the city's own
+  climate (``conditions.CLIMATE_NORMALS``) and so its snow, the schedule's local clock)
+  from ``WORLD_CITIES`` (``webcam_worlds``) or from ``UNSEEN_CITIES``
+  (``webcam_worlds_unseen``), pools that share no city with each other or with
+  ``plan_webcam.WEBCAM_CITIES`` (the shipped 7-scene models' cities), so that a held-out
+  world is new in its streets *and* its places;
 * the street: vegetation from urban (0) to park-like (1), 2 or 4 lanes, the watched
   facade facing south or north;
 * the days: one per quarter, in a year of 2012-2016 and months drawn per webcam.
@@ -39,8 +40,9 @@ __all__ = ["UNSEEN_CITIES", "WORLD_CITIES", "plan", "plan_unseen", "webcams_per_
 # (city, latitude, longitude, time zone): the training pool, from the equator to 61 deg
 # and both hemispheres (seasons flip south of it, ``conditions.season_of_day``). Coordinates
 # are the cities' centres (WGS84, to 1e-4 deg), zones the IANA database's. What a city
-# brings is physical: the sun's path (``sun.solar_position``), its seasons and snow
-# (``conditions``) and the local clock of the schedule. The street draws below (vegetation,
+# brings is physical: the sun's path (``sun.solar_position``), its seasons, its own
+# climate's temperatures and so its snow (``conditions``) and the local clock of the
+# schedule. The street draws below (vegetation,
 # lanes, facade orientation, year) are not physical rates but the spread of the training
 # distribution, chosen before any run and never on a held-out world: every street type of
 # ``scene.build_scene`` (urban to park-like, 2 or 4 lanes, two-lane streets the common case)
@@ -112,7 +114,7 @@ def world_sites(seed: int, num_scenes: int, cities: tuple, street_stream: int
             latitude=lat,
             longitude=lon,
             vegetation=float(rng.uniform(0.0, 1.0)),
-            extra=(("lanes", int(rng.choice([2, 4], p=[0.75, 0.25]))),),
+            extra=(("lanes", int(rng.choice([2, 4], p=[0.75, 0.25]))), ("climate", "local")),
         )
         facade_azimuth = float(rng.choice([0.0, 180.0]))
         sites.append(WebcamSite(f"scene_{i:02d}", i, city, lat, lon, tz_name, facade_azimuth,

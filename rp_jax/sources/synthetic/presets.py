@@ -131,10 +131,11 @@ WORLD_VERSION = 4
 #    their winters), the passing cars' and the camera's own car's dipped headlamps at night
 #    and, in rain at night, the wet road mirroring the lamps and headlamps
 #    (``night_lights``); robotcar_seasons' snow traversal a documented snowy day.
-# 7: webcam_clipart's eight cities in their own climates (``conditions.CLIMATE_NORMALS``):
-#    the latitude's gave London, Paris and Seattle continental winters, with snow lying on
-#    their winter capture days.
-_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6, "webcam_clipart": 7}
+# 7: webcam_clipart's and the many-worlds presets' cities in their own climates
+#    (``conditions.CLIMATE_NORMALS``): the latitude's gave London, Paris, Seattle, Dublin or
+#    Rome continental winters, with snow lying on their winter capture days.
+_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6, "webcam_clipart": 7,
+                          "webcam_worlds": 7, "webcam_worlds_unseen": 7}
 
 
 def world_version(preset: str | None) -> int:

@@ -187,3 +187,26 @@ def test_london_and_paris_seldom_keep_snow_and_chicago_often_does():
     assert covered("Chicago", "local") > 0.3
     # In the latitude's climate London was under snow for much of the winter.
     assert covered("London", "latitude") > 0.4
+
+
+def test_every_many_worlds_city_has_its_own_climate_with_the_south_s_seasons_flipped():
+    from rp_jax.sources.synthetic import plan_worlds
+
+    cells = [(int(np.floor(lat)), int(np.floor(lon)))
+             for _, lat, lon, _ in plan_worlds.WORLD_CITIES + plan_worlds.UNSEEN_CITIES]
+    assert len(set(cells)) == len(cells)  # one cell per city, none shared
+    assert all(cell in cond.CLIMATE_NORMALS for cell in cells)
+    where = {c[0]: c[1:3] for c in plan_worlds.WORLD_CITIES + plan_worlds.UNSEEN_CITIES}
+    # Singapore: about 27 C all year (the latitude's formula: 40 C).
+    for month in (1, 7):
+        assert 26.0 < _monthly_mean(*where["Singapore"], month, "local") < 28.5
+    assert _monthly_mean(*where["Singapore"], 1, "latitude") > 35.0
+    # Auckland's coldest month is July, Helsinki's January.
+    assert _monthly_mean(*where["Auckland"], 7, "local") < _monthly_mean(
+        *where["Auckland"], 1, "local") - 6.0
+    assert _monthly_mean(*where["Helsinki"], 1, "local") < -2.0
+    # Dublin seldom keeps snow (the latitude's climate: all winter long).
+    days = list(_winter_days(2013))
+    dublin = [cond.snow_state(s, d, *where["Dublin"], climate="local")[0] > 0
+              for s in range(3) for d in days]
+    assert np.mean(dublin) < 0.1
