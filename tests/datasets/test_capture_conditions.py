@@ -97,3 +97,10 @@ def test_webcam_weather_is_drawn_in_the_scenes_own_climate(tmp_path):
     when = january[0].when
     assert conditions.conditions_at(scene.seed, scene.latitude, scene.longitude, when).snow > 0
     assert capture_conditions.weather_record(january[0].image_path, when)["snow_cover"] == 0.0
+    # A scene written before the climates (no "climate" entry) was drawn in the latitude's.
+    older = tmp_path / "older_world" / "scene_06"
+    write_layout.write_webcam_scene_sidecar(
+        older, timezone="Europe/Paris", latitude=scene.latitude, longitude=scene.longitude,
+        synthetic={"scene": dataclasses.asdict(dataclasses.replace(scene, extra=()))})
+    got = capture_conditions.weather_record(older / january[0].image_path.name, when)
+    assert got["snow_cover"] > 0.0
