@@ -182,26 +182,23 @@ CLIMATES = ("latitude", "local")
 #   stations' 1991-2020 normals of the daily mean temperature in January and in July,
 #   rounded to the half degree; the sinusoid passes through both (its mean is their
 #   midpoint, a little above the annual mean where summers are long, as in Madrid). NOAA
-#   NCEI's U.S. Climate Normals: Pittsburgh International Airport (January -1.5 C, July
-#   23 C), Boston Logan (-1, 23.5), Chicago O'Hare (-4, 23.5), Denver International
-#   Airport (-0.5, 23.5) and Seattle-Tacoma (6, 19.5: daily maximum and minimum 48 and
-#   38 F in January, 77 and 57 F in July); the Met Office's London Heathrow (5.5, 19);
-#   Meteo-France's Paris-Montsouris (5.5, 21); AEMET's Madrid-Retiro (6.5, 26). The
+#   NCEI's U.S. Climate Normals: Pittsburgh International Airport, Boston Logan, Chicago
+#   O'Hare, Denver International Airport and Seattle-Tacoma (daily maximum and minimum 48
+#   and 38 F in January, 77 and 57 F in July); the Met Office's London Heathrow;
+#   Meteo-France's Paris-Montsouris; AEMET's Madrid-Retiro. The
 #   latitude's sinusoid is close for the four continental North American cities and far too
 #   cold for the four maritime or Mediterranean ones (January about -13 C in London, -10 C
 #   in Paris, -9 C in Seattle, -1.5 C in Madrid): snow lay on their winter capture days,
 #   in Paris still on a day in April.
-CLIMATE_NORMALS = {
-    (51, -2): (11.1, 6.5),  # Oxford: annual mean, half-range
-    # (January + July) / 2, (July - January) / 2:
-    (40, -80): (10.75, 12.25),  # Pittsburgh
-    (42, -72): (11.25, 12.25),  # Boston
-    (41, -88): (9.75, 13.75),  # Chicago
-    (39, -105): (11.5, 12.0),  # Denver
-    (47, -123): (12.75, 6.75),  # Seattle
-    (51, -1): (12.25, 6.75),  # London
-    (48, 2): (13.25, 7.75),  # Paris
-    (40, -4): (16.25, 9.75),  # Madrid
+_COLDEST_WARMEST = {  # (coldest, warmest month's mean daily temperature), deg C
+    (40, -80): (-1.5, 23.0),  # Pittsburgh
+    (42, -72): (-1.0, 23.5),  # Boston
+    (41, -88): (-4.0, 23.5),  # Chicago
+    (39, -105): (-0.5, 23.5),  # Denver
+    (47, -123): (6.0, 19.5),  # Seattle
+    (51, -1): (5.5, 19.0),  # London
+    (48, 2): (5.5, 21.0),  # Paris
+    (40, -4): (6.5, 26.0),  # Madrid
 }
 # - The many-worlds webcams' cities (``plan_worlds.WORLD_CITIES`` and ``UNSEEN_CITIES``):
 #   the mean daily temperature of their coldest and their warmest month (January and July,
@@ -214,7 +211,7 @@ CLIMATE_NORMALS = {
 #   and Bogota, Nairobi and Singapore means near 38 C. Precipitation is not the place's
 #   own (``_regional_winter``: the same wet-day rate and amounts everywhere), so a dry
 #   winter such as Beijing's is snowier here than it is.
-_COLDEST_WARMEST = {
+_COLDEST_WARMEST.update({
     (43, -80): (-4.0, 22.0),  # Toronto
     (44, -94): (-9.0, 23.5),  # Minneapolis
     (33, -113): (13.5, 35.0),  # Phoenix
@@ -246,9 +243,14 @@ _COLDEST_WARMEST = {
     (37, 126): (-2.0, 25.5),  # Seoul
     (-38, 144): (10.5, 21.0),  # Melbourne
     (-34, -71): (8.5, 21.0),  # Santiago
+})
+# (mean, half-range) per cell: Oxford's annual mean; elsewhere the sinusoid passes through
+# the coldest and the warmest month's means.
+CLIMATE_NORMALS = {
+    (51, -2): (11.1, 6.5),  # Oxford
+    **{cell: ((cold + warm) / 2.0, (warm - cold) / 2.0)
+       for cell, (cold, warm) in _COLDEST_WARMEST.items()},
 }
-CLIMATE_NORMALS.update({cell: ((cold + warm) / 2.0, (warm - cold) / 2.0)
-                        for cell, (cold, warm) in _COLDEST_WARMEST.items()})
 
 
 def _climate_temperature(doy: np.ndarray, latitude: float,

@@ -106,17 +106,17 @@ OXFORD = (51.7520, -1.2577)
 
 
 def test_oxford_has_its_maritime_climate_and_pittsburgh_its_continental_one():
-    def monthly_mean(place, month):
-        days = [dt.date(2014, month, d) for d in range(1, 29)]
-        return np.mean([cond._climate_temperature(
-            np.array([cond._day_of_year(d, place[0])]), *place)[0] for d in days])
+    def monthly_mean(place, month, climate="local"):
+        return _monthly_mean(*place, month, climate)
 
     # Radcliffe Meteorological Station: about 5 C in January, 18 C in July, 11.06 C a year.
     assert 3.5 < monthly_mean(OXFORD, 1) < 6.5 and 16.0 < monthly_mean(OXFORD, 7) < 19.5
     year = np.mean([monthly_mean(OXFORD, m) for m in range(1, 13)])
     assert abs(year - 11.06) < 0.5
-    # Pittsburgh as before: about -2 C in January and 23 C in July.
-    assert -3.5 < monthly_mean(PITTSBURGH, 1) < -0.5 and 21.5 < monthly_mean(PITTSBURGH, 7) < 24.5
+    # Pittsburgh in the latitude's climate, as cmu_seasons renders it: about -2 C in January
+    # and 23 C in July.
+    assert (-3.5 < monthly_mean(PITTSBURGH, 1, "latitude") < -0.5
+            and 21.5 < monthly_mean(PITTSBURGH, 7, "latitude") < 24.5)
     # So Oxford's winters seldom freeze: rain falls as rain on most wet winter days, and
     # snow lies on few days.
     days = list(_winter_days(2014))
