@@ -223,7 +223,7 @@ def test_synthetic_root_of_an_older_world_version_is_rendered_again(tmp_path, mo
     root.mkdir(exist_ok=True)
     (root / "_synthetic").mkdir(exist_ok=True)
     (root / "_synthetic" / "generation.json").write_text(
-        json.dumps({**marker, "world": presets.WORLD_VERSION}))
+        json.dumps({**marker, "world": presets.world_version("robotcar")}))
     builder_lib.ensure_synthetic("robotcar", root, size="tiny", seed=0, workers=1)
     assert len(calls) == 1
 

@@ -71,13 +71,12 @@ ROBOTCAR_LOCATION = (51.7520, -1.2577)  # Oxford
 ROBOTCAR_CAMERA_HEIGHT_M = 1.6
 
 
-def oxford_street(scene_seed: int, length_m: float, climate: str = "latitude") -> SceneSpec:
+def oxford_street(scene_seed: int, length_m: float) -> SceneSpec:
     """The street the RobotCar presets drive: a street scene at Oxford's latitude and
-    longitude, ``length_m`` long, with this preset's vegetation, in ``climate``
-    (``conditions.CLIMATES``: ``robotcar_day`` and ``robotcar_seasons`` have Oxford's own,
-    ``robotcar`` the latitude's, with which its results were made)."""
+    longitude, ``length_m`` long, with this preset's vegetation, in Oxford's own climate
+    (``conditions.CLIMATE_NORMALS``; the latitude's, a continental one, froze its winters)."""
     lat, lon = ROBOTCAR_LOCATION
-    extra = () if climate == "latitude" else (("climate", climate),)
+    extra = (("climate", "local"),)
     return SceneSpec(seed=scene_seed, kind="street", length_m=length_m, latitude=lat,
                      longitude=lon, vegetation=0.45, extra=extra)
 
@@ -149,16 +148,14 @@ def plan_day(out_dir: Path, size: str, seed: int) -> Plan:
 
     spec, hours = _DAY_SIZES[size]
     return _plan(out_dir, spec, day_traversals(hours), seed, "robotcar_day",
-                 lighting=photometry.EN_13201.name, sensor=camera_effects.BUMBLEBEE_XB3_16HZ.name,
-                 climate="local")
+                 lighting=photometry.EN_13201.name, sensor=camera_effects.BUMBLEBEE_XB3_16HZ.name)
 
 
 def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]], seed: int,
-          name: str, *, lighting: str | None = None, sensor: str | None = None,
-          climate: str = "latitude") -> Plan:
+          name: str, *, lighting: str | None = None, sensor: str | None = None) -> Plan:
     """The frames of ``traversals`` along one street and the layout's metadata writer;
     ``lighting`` and ``sensor`` as ``FrameJob``'s (a sensor also blurs with the car's
-    velocity), ``climate`` as ``oxford_street``'s."""
+    velocity)."""
     scene_stream, traversal_stream, frame_stream = _STREAMS[name]
     cam = write_layout.ROBOTCAR_STEREO_CENTRE
     cam = write_layout.scale_camera(cam, round(cam.width * spec.scale),
@@ -166,7 +163,7 @@ def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]],
     lat, lon = ROBOTCAR_LOCATION
     leg = 12.0 * spec.viewpoints + 10.0  # metres per direction
     scene_spec = oxford_street(int(seeded_rng(seed, scene_stream).integers(0, 2**31 - 1)),
-                               leg + 20.0, climate)
+                               leg + 20.0)
     scene = frame_jobs.scene_of(scene_spec)
     # The renderer's street has right-hand traffic (its passing cars use those lanes), so
     # the car keeps right here, unlike in Oxford.

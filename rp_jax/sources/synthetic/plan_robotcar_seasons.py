@@ -125,7 +125,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                                     round(REAL_CAMERA.height * spec.scale))
     route_length = spec.positions * spec.spacing_m + 10.0
     scene_spec = oxford_street(int(seeded_rng(seed, 30).integers(0, 2**31 - 1)),
-                               route_length + 20.0, "local")
+                               route_length + 20.0)
     scene = frame_jobs.scene_of(scene_spec)
     # Right-hand traffic, as the renderer's passing cars drive (see plan_robotcar).
     x0 = (scene.length_m - route_length) / 2

@@ -134,8 +134,11 @@ WORLD_VERSION = 4
 # 7: webcam_clipart's and the many-worlds presets' cities in their own climates
 #    (``conditions.CLIMATE_NORMALS``): the latitude's gave London, Paris, Seattle, Dublin or
 #    Rome continental winters, with snow lying on their winter capture days.
+# 8: robotcar (the paper's Table I traversals) in Oxford's own climate too: the latitude's
+#    laid snow on four of its nine traversals (February 13, March 17, November 18 and 28:
+#    the 9:00, 11:00, 12:00 and 13:00 slots), none of them snowy in Oxford's.
 _PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6, "webcam_clipart": 7,
-                          "webcam_worlds": 7, "webcam_worlds_unseen": 7}
+                          "webcam_worlds": 7, "webcam_worlds_unseen": 7, "robotcar": 8}
 
 
 def world_version(preset: str | None) -> int:
