@@ -423,7 +423,11 @@ def map_summarization_headline(metrics: Mapping | None) -> str:
         raise ValueError(f"{MAPSUM}: not the layout this summary reads ({e!r})") from e
     m = re.fullmatch(r"([\d.]+)m_([\d.]+)deg", threshold)
     within = f"({m.group(1)} m, {m.group(2)}°)" if m else threshold
-    return "\n".join(lines) + f"\n\nWithin {within}. Run: {run_caption(metrics)}.\n"
+    # The README speaks of the tool, not of a run: the command, date, machine and code of
+    # this one are in the results page the link names.
+    return "\n".join(lines) + (
+        f"\n\nWithin {within}; the run that made it, with every threshold and interval: "
+        "[docs/results/map_summarization.md](docs/results/map_summarization.md).\n")
 
 
 def map_summarization_tables(metrics: Mapping | None, path: Path = MAPSUM) -> str:

@@ -255,7 +255,9 @@ def test_map_summarization_headline_reads_the_coarsest_threshold():
     table = docs_tables.map_summarization_headline(metrics)
     assert "| method | 50 % pruned | 90 % pruned |" in table
     assert "| rp | 90.0 | 50.0 |" in table and "| kcover | 89.0 | 47.5 |" in table
-    assert "Within (5 m, 10°)." in table and "a CPU, 2 cores; git bbbbbbbbbbbb" in table
+    assert "Within (5 m, 10°);" in table and "(docs/results/map_summarization.md)" in table
+    # User documentation: no run's date, machine or commit.
+    assert "2030" not in table and "bbbbbb" not in table and "a CPU" not in table
     with pytest.raises(ValueError, match="not the layout"):
         docs_tables.map_summarization_headline({"ratios": []})
 
