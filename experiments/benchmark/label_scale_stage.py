@@ -83,7 +83,8 @@ def _plan(world: Path, size_name: str):
                                    width=width, height=height)
     days = [FIRST_DAY + dt.timedelta(days=k) for k in range(NUM_DAYS)]
     return plan_webcam._plan(
-        "webcam_clipart", world, "full", 0, plan_webcam.webcam_sites(0, 8), width, height,
+        "webcam_clipart", world, "full", 0,
+        plan_webcam.webcam_sites(0, 8, plan_webcam.CLIPART_SCENE_EXTRA), width, height,
         days_of=lambda i: days if i == SCENE_INDEX else [],
         times_of=lambda day, tz, rng: plan_webcam.webcam_times(day, tz, spec, rng),
     )

@@ -12,6 +12,7 @@ import json
 import numpy as np
 import pytest
 
+from experiments.benchmark import label_scale_stage
 from experiments.benchmark.label_scale_stage import NUM_DAYS, fit, viewpoint_days
 from experiments.benchmark.run import run_benchmark
 
@@ -25,6 +26,15 @@ def test_smaller_viewpoints_are_spread_subsets_of_larger_ones():
     assert np.diff(d1k).max() < 3 * 477 / 48
     with pytest.raises(ValueError, match="num_frames"):
         viewpoint_days(NUM_DAYS * 21 + 1)
+
+
+def test_the_viewpoint_is_the_webcam_presets_scene_as_it_renders_it(tmp_path):
+    from rp_jax.sources.synthetic import presets
+
+    ours = {j.scene for j in label_scale_stage._plan(tmp_path / "b", "tiny").jobs}
+    preset = presets.plan("webcam_clipart", tmp_path / "p", size="full", seed=0)
+    scene = preset.jobs[0].scene  # scene_00 (in its city's own climate)
+    assert ours == {scene} and dict(scene.extra).get("climate") == "local"
 
 
 def test_fit_of_cost_against_frames():

@@ -202,17 +202,22 @@ def _webcam_camera(scene, facade_azimuth: float, rng: np.random.Generator, width
     return K, R, t
 
 
+# The scenes' ``extra`` of ``webcam_clipart``: its cities in their own climates
+# (``conditions.CLIMATE_NORMALS``; the years presets keep the latitude's, with which their
+# results were made, on their May-August days).
+CLIPART_SCENE_EXTRA = (("climate", "local"),)
+
+
 def plan(out_dir: Path, size: str, seed: int) -> Plan:
-    """The frames of the ``webcam_clipart`` preset and its metadata writer: its cities in
-    their own climates (``conditions.CLIMATE_NORMALS``; the years presets keep the
-    latitude's, with which their results were made, on their May-August days)."""
+    """The frames of the ``webcam_clipart`` preset and its metadata writer (its scenes
+    with ``CLIPART_SCENE_EXTRA``)."""
     spec = _WEBCAM_SIZES[size]
     return _plan(
         "webcam_clipart",
         out_dir,
         size,
         seed,
-        webcam_sites(seed, spec.scenes, (("climate", "local"),)),
+        webcam_sites(seed, spec.scenes, CLIPART_SCENE_EXTRA),
         spec.width,
         spec.height,
         days_of=lambda i: webcam_days(i, spec.days, seed),
