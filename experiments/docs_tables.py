@@ -444,13 +444,14 @@ def map_summarization_tables(metrics: Mapping | None, path: Path = MAPSUM) -> st
 
 def map_summarization_conditions_tables(metrics: Mapping | None,
                                         path: Path = MAPSUM_CONDITIONS) -> str:
-    """The by-condition run's tables (``conditions.tables_markdown``) and its caption."""
+    """The by-condition run's tables (``conditions_report.tables_markdown``) and its
+    caption."""
     if metrics is None:
         return ("_No by-condition map-summarization result is committed yet "
                 f"(`{path.as_posix()}`)._\n")
-    from experiments.map_summarization import conditions
+    from experiments.map_summarization import conditions_report
 
-    body = conditions.tables_markdown(metrics).rstrip("\n") + "\n"
+    body = conditions_report.tables_markdown(metrics).rstrip("\n") + "\n"
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
@@ -467,13 +468,13 @@ def night_factors_tables(out: Mapping | None, path: Path = NIGHT_FACTORS) -> str
 def nights_counterfactual_tables(metrics: Mapping | None, path: Path = NIGHTS_CF) -> str:
     """The by-condition run on counterfactual nights: its primary comparison, the full map
     by condition, the night group and the scorers' contrasts at night
-    (``conditions.tables_markdown`` of the night group)."""
+    (``conditions_report.tables_markdown`` of the night group)."""
     if metrics is None:
         return f"_No counterfactual by-condition result is committed yet (`{path.as_posix()}`)._\n"
-    from experiments.map_summarization import conditions
+    from experiments.map_summarization import conditions, conditions_report
 
     night = {k: v for k, v in metrics["groups"].items() if k == conditions.PRIMARY_GROUP}
-    body = conditions.tables_markdown(dict(metrics, groups=night)).rstrip("\n") + "\n"
+    body = conditions_report.tables_markdown(dict(metrics, groups=night)).rstrip("\n") + "\n"
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 

@@ -5,6 +5,7 @@ import json
 import pytest
 
 from experiments.map_summarization import conditions as mc
+from experiments.map_summarization import conditions_report as mcr
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
 from tests.datasets._tiny import tiny_data_copy
@@ -138,23 +139,23 @@ def test_time_matters_only_where_an_interval_is_entirely_above_zero(lo_80, lo_90
     assert p["available"] and len(p["cells"]) == 4
     assert p["time_matters"] is matters
     if matters:  # said of the world, or of counterfactual copies of it
-        assert "Time matters at night in this world" in "\n".join(mc._primary_lines(p))
-        assert "in these counterfactual worlds" in "\n".join(mc._primary_lines(p, True))
+        assert "Time matters at night in this world" in "\n".join(mcr._primary_lines(p))
+        assert "in these counterfactual worlds" in "\n".join(mcr._primary_lines(p, True))
 
 
 def test_a_night_the_full_map_cannot_localize_is_not_read_as_no_difference():
     p = mc.primary(_metrics(0.0, 0.0, full=0.0))
     assert p["full_map_localizes_none"] and not p["time_matters"]
-    assert "Not measurable" in "\n".join(mc._primary_lines(p))
+    assert "Not measurable" in "\n".join(mcr._primary_lines(p))
     p = mc.primary(_metrics(0.0, 0.0, full=2.5))
     assert not p["full_map_localizes_none"]
-    assert "No interval is entirely above zero" in "\n".join(mc._primary_lines(p))
+    assert "No interval is entirely above zero" in "\n".join(mcr._primary_lines(p))
 
 
 def test_no_night_query_means_not_measured():
     p = mc.primary({"groups": {"day": {}}})
     assert p == {"group": "night", "available": False}
-    assert "Not measured" in "\n".join(mc._primary_lines(p))
+    assert "Not measured" in "\n".join(mcr._primary_lines(p))
 
 
 def test_a_layout_without_its_reference_model_is_refused(tmp_path):
@@ -364,7 +365,7 @@ def test_a_counterfactual_world_is_named_as_one_in_the_report(tmp_path):
     assert record == {"factor": "still_noiseless",
                       "description": "no motion blur and no sensor noise",
                       "conditions": ["night", "night-rain"]}
-    lines = "\n".join(mc._counterfactual_lines({"0": record, "3": record}))
+    lines = "\n".join(mcr._counterfactual_lines({"0": record, "3": record}))
     assert "**Counterfactual worlds**" in lines and "world seeds 0, 3" in lines
     assert "night, night-rain: no motion blur and no sensor noise" in lines
-    assert mc._counterfactual_lines(None) == []
+    assert mcr._counterfactual_lines(None) == []
