@@ -7,12 +7,19 @@ conditional experiments and the map-summarization driver's predictors.
 
 from __future__ import annotations
 
+import json
+import logging
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["EVALUATION_KEYS", "build_dataset", "model_keys", "model_source", "split_validation",
-           "subset"]
+__all__ = ["EVALUATION_KEYS", "TRAINED_ON_JSON", "build_dataset", "check_trained_on",
+           "model_keys", "model_source", "records_identity", "split_validation", "subset"]
+
+log = logging.getLogger(__name__)
+
+# Beside a trained model: which records it was trained on (``records_identity``).
+TRAINED_ON_JSON = "trained_on.json"
 
 # What the experiment reads from each record (beyond the model's keys).
 EVALUATION_KEYS = ("viewpoint", "image_id", "slot", "category", "descriptor", "xy", "image_size")
@@ -32,20 +39,85 @@ def split_validation(viewpoints: np.ndarray, fraction: float, seed: int) -> np.n
     return np.isin(viewpoints, held)
 
 
-def build_dataset(config, workdir: Path) -> dict:
+def _builder(config):
     from rp_jax.datasets import loading
 
     kwargs = {}
     if config.input.get("synthetic_root"):
         kwargs["synthetic_root"] = config.input.synthetic_root
-    builder = loading.get_builder(
+    return loading.get_builder(
         config.input.dataset, config=config.input.data_config,
         data_dir=config.input.data_dir or None, **kwargs
     )
-    from rp_jax.datasets import provenance
 
-    # Builds unless built; a real dataset built from another download is refused.
+
+def records_identity(config) -> dict:
+    """What the records of ``config.input`` are as this code builds them, without building
+    anything: the dataset and config, the labelling's digest, and the synthetic world's
+    version and layout folder (a real build: the download's folder)."""
+    from rp_jax.datasets import provenance
+    from rp_jax.sources.synthetic import presets
+
+    builder = _builder(config)
+    cfg = builder.builder_config
+    identity = {"dataset": builder.DATASET, "config": cfg.name,
+                "labelling": provenance.labelling_fingerprint(builder)["digest"]}
+    if cfg.source == "real":
+        manual = config.input.get("manual_dir") or ""
+        identity["download"] = Path(manual).name if manual else ""
+    else:
+        identity["world"] = presets.world_version(builder.DATASET)
+        identity["layout"] = builder.synthetic_layout_root().name
+    return identity
+
+
+def check_trained_on(workdir: Path, identity: dict) -> None:
+    """Refuse a workdir whose model was trained on other records than ``identity``'s.
+
+    A finished run is reused without reading its records, so without this check a model
+    trained before the synthetic world or the labelling changed would go on being loaded
+    (and evaluated on the new records) by every later run in its workdir.
+
+    Raises:
+      train.WorkdirMismatchError: the workdir records other records than ``identity``.
+    """
+    from rp_jax import train
+
+    path = Path(workdir) / TRAINED_ON_JSON
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            old = {}
+        if old != identity:
+            differ = sorted(k for k in {*old, *identity} if old.get(k) != identity.get(k))
+            world = (f"; synthetic world version {old.get('world')} then, {identity['world']} "
+                     "now" if "world" in differ and "world" in identity else "")
+            raise train.WorkdirMismatchError(
+                f"{workdir} holds a model trained on other {identity['dataset']} records than "
+                f"this code builds ({', '.join(differ)} differ{world}): use another workdir "
+                "or delete it")
+    elif (Path(workdir) / "metrics.jsonl").is_file():
+        log.warning("%s was trained before runs recorded which records they were trained on: "
+                    "if the synthetic world or the labelling changed since (CHANGELOG), "
+                    "delete it to train on the records built now", workdir)
+
+
+def build_dataset(config, workdir: Path) -> dict:
+    """Every split's columns of ``config.input``'s dataset, built (or built again) where
+    needed; ``workdir`` (which trains on them) is checked against them and records them
+    (``check_trained_on``)."""
+    from rp_jax import files
+    from rp_jax.datasets import loading, provenance
+
+    identity = records_identity(config)
+    check_trained_on(workdir, identity)
+    builder = _builder(config)
+    # Builds unless built (again where this code builds another world or labelling); a real
+    # dataset built from another download is refused.
     provenance.prepare(builder, config.input.manual_dir or None)
+    if not (Path(workdir) / TRAINED_ON_JSON).is_file():
+        files.write_json(Path(workdir) / TRAINED_ON_JSON, identity, sort_keys=True)
     keys = tuple(dict.fromkeys(model_keys() + EVALUATION_KEYS))
     return {
         split: loading.load_columns(

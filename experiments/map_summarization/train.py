@@ -48,7 +48,7 @@ TRAINING_COUNTS = "training_counts.json"
 
 
 def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_size: int,
-         progress: bool, asked: Mapping | None = None):
+         progress: bool, asked: Mapping | None = None, identity: Mapping | None = None):
     """Train in ``rp_dir`` on the records ``columns()`` gives (with counts of its own to
     report), validation viewpoints held out; (predictor, counts). Resumes an interrupted run.
 
@@ -59,10 +59,13 @@ def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_s
     Raises:
       train.WorkdirMismatchError: the folder holds a run of another config, or a finished
         one whose records were selected otherwise (``asked``: what selects the records
-        beyond the config, e.g. the excluded slices).
+        beyond the config, e.g. the excluded slices) or trained on other records than
+        ``identity`` (``records.records_identity``: another synthetic world or labelling).
     """
     asked = dict(asked or {})
     counts_path = rp_dir / TRAINING_COUNTS
+    if identity is not None:  # before a finished run is loaded: the records built now?
+        records.check_trained_on(rp_dir, identity)
     if train.finished_run(rp_dir, cfg) and counts_path.is_file():
         saved = json.loads(counts_path.read_text())
         if saved.get("asked") != asked:
@@ -71,6 +74,8 @@ def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_s
                 f"{saved.get('asked')}, asked {asked}; use another folder or delete it")
         return predict.load(rp_dir, batch_size=batch_size), saved["counts"]
     cols, more_counts = columns()
+    if identity is not None and not (rp_dir / records.TRAINED_ON_JSON).is_file():
+        files.write_json(rp_dir / records.TRAINED_ON_JSON, dict(identity), sort_keys=True)
     val_mask = records.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
                                            cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
@@ -108,7 +113,8 @@ def train_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *, progress
     loaded without reading the records); (predictor, counts)."""
     cfg = rp_config(config)
     return _fit(cfg, rp_dir, lambda: _train_columns(cfg, rp_dir),
-                batch_size=config.eval.batch_size, progress=progress)
+                batch_size=config.eval.batch_size, progress=progress,
+                identity=records.records_identity(cfg))
 
 
 def day_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -135,7 +141,8 @@ def train_day_predictor(config: ml_collections.ConfigDict, rp_dir: Path, *,
     records); (predictor, counts)."""
     cfg = day_config(config)
     return _fit(cfg, rp_dir, lambda: _train_columns(cfg, rp_dir),
-                batch_size=config.eval.batch_size, progress=progress)
+                batch_size=config.eval.batch_size, progress=progress,
+                identity=records.records_identity(cfg))
 
 
 def cmu_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -183,7 +190,7 @@ def train_cmu_predictor(
                  "excluded_slices": excluded})
 
     return _fit(cfg, rp_dir, columns, batch_size=config.eval.batch_size, progress=progress,
-                asked={"excluded_slices": excluded})
+                asked={"excluded_slices": excluded}, identity=records.records_identity(cfg))
 
 
 def _conditional_settings(cfg, epochs: int):

@@ -93,3 +93,6 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
                f"input.{field}", "a folder (created if absent), not a file")
     if workdir is not None:
         train.check_workdir(workdir, config)
+        from experiments import records
+
+        records.check_trained_on(workdir, records.records_identity(config))

@@ -518,7 +518,24 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
         # Beam is used only when asked for (tfds build --beam_pipeline_options=...).
         self._use_beam = bool(download_config.beam_runner or download_config.beam_options)
         with tf_free_shuffler():
-            return super()._download_and_prepare(dl_manager, download_config, **kwargs)
+            out = super()._download_and_prepare(dl_manager, download_config, **kwargs)
+        if self.builder_config.source != "real":
+            # Which synthetic world the records come from, beside them (TFDS builds in a
+            # temporary folder that becomes ``data_dir``): ``provenance.prepare`` builds
+            # again what a world or labelling of this code would not give.
+            from rp_jax.datasets import provenance
+            from rp_jax.sources.synthetic import output_folder
+
+            provenance.record_synthetic(
+                self, output_folder.folder_parameters(self.synthetic_layout_root()) or {})
+        return out
+
+    def synthetic_layout_root(self) -> Path:
+        """Where this synthetic config's layout is (rendered or not)."""
+        cfg = self.builder_config
+        return self._synthetic_root or synthetic_root(
+            self._data_dir_root, self.DATASET, cfg.size, cfg.seed
+        )
 
     def layout_root(self, dl_manager) -> Path:
         """The folder read: ``manual_dir`` (real) or the synthetic layout (rendered if absent)."""
@@ -528,12 +545,8 @@ class RepeatabilityBuilder(tfds.core.GeneratorBasedBuilder, skip_registration=Tr
                 return Path(dl_manager.manual_dir)
             except AssertionError as err:  # TFDS: absent or empty, with the instructions
                 raise LayoutError(str(err)) from err
-        root = self._synthetic_root or synthetic_root(
-            self._data_dir_root, self.DATASET, cfg.size, cfg.seed
-        )
-        return ensure_synthetic(
-            self.DATASET, root, size=cfg.size, seed=cfg.seed, workers=self._workers
-        )
+        return ensure_synthetic(self.DATASET, self.synthetic_layout_root(), size=cfg.size,
+                                seed=cfg.seed, workers=self._workers)
 
     def cache_dir(self, dl_manager) -> Path:
         """Per-viewpoint ground-truth cache of this dataset and config (resume)."""

@@ -15,6 +15,7 @@ layouts go beside it (``.../data/synthetic``).
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 import zlib
 from collections.abc import Sequence
@@ -34,6 +35,8 @@ __all__ = [
     "load_columns",
     "splits",
 ]
+
+log = logging.getLogger(__name__)
 
 _PACKAGE_PARENT = Path(__file__).resolve().parents[2]
 
@@ -114,6 +117,12 @@ def _built_builder(name: str, config: str, data_dir, split: str | None):
             f"`python -m rp_jax.datasets build {name} {BUILD_FLAGS[config]} --data-dir "
             f"{Path(builder._data_dir_root)}`"
         )
+    from rp_jax.datasets import provenance
+
+    if (stale := provenance.synthetic_staleness(builder)) is not None:
+        log.warning("%s/%s in %s: %s; `python -m rp_jax.datasets build %s %s --data-dir %s` "
+                    "builds it again", name, config, builder.data_dir, stale, name,
+                    BUILD_FLAGS[config], Path(builder._data_dir_root))
     if split is not None and split not in builder.info.splits:
         raise ValueError(
             f"{name}/{config} has no split {split!r}; it has {sorted(builder.info.splits)}"

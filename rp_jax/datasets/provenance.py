@@ -10,6 +10,13 @@ layout it was built from (every file's path relative to the root, its size and m
 hashed) and of the labelling (the builder's version and config, the ground-truth settings,
 the data spec). A later ``prepare`` with a ``manual_dir`` recomputes both and refuses, naming
 what differs and what to do, when they are not the same.
+
+A synthetic build records the same way which world it read (the rendered layout's marker:
+preset, size, seed and world version) and its labelling. Its records are the tool's own,
+made again at will, so a later ``prepare`` builds it again, saying why, when this code
+renders another version of that world or labels otherwise (a build older than these
+records, too): without that, a world made right (say, a city's climate) kept feeding the
+old records to every experiment run in a data directory that had built them.
 """
 
 from __future__ import annotations
@@ -33,6 +40,8 @@ __all__ = [
     "labelling_fingerprint",
     "layout_fingerprint",
     "prepare",
+    "record_synthetic",
+    "synthetic_staleness",
 ]
 
 log = logging.getLogger(__name__)
@@ -186,6 +195,41 @@ def _check(builder, manual_dir: Path) -> None:
         )
 
 
+def record_synthetic(builder, marker: dict) -> None:
+    """Write, beside a synthetic build's records, the marker of the world it read and its
+    labelling (``RepeatabilityBuilder`` does, at the end of every build)."""
+    payload = {"synthetic": marker, "labelling": labelling_fingerprint(builder)}
+    files.write_json(_path(builder), payload, sort_keys=True, default=str)
+
+
+def synthetic_staleness(builder) -> str | None:
+    """Why a built synthetic dataset is not what this code would build now, in words;
+    None when it is (or when the build is not a synthetic one)."""
+    from rp_jax.sources.synthetic import presets
+
+    if builder.builder_config.source == "real":
+        return None
+    try:
+        built = json.loads(_path(builder).read_text())
+    except (OSError, json.JSONDecodeError):
+        built = {}
+    marker = built.get("synthetic") if isinstance(built, dict) else None
+    if not isinstance(marker, dict):
+        return "it was built before builds recorded the synthetic world they read"
+    preset = marker.get("preset")
+    want = presets.world_version(preset)
+    if marker.get("world", 1) != want:
+        return (f"it was built from version {marker.get('world', 1)} of the synthetic "
+                f"{preset} world; this code renders version {want}")
+    labelling = labelling_fingerprint(builder)
+    old = built.get("labelling") or {}
+    if old.get("digest") != labelling["digest"]:
+        changed = sorted(k for k in labelling if k != "digest"
+                         and old.get(k) != json.loads(json.dumps(labelling[k], default=str)))
+        return f"it was labelled with other settings ({', '.join(changed) or 'unknown'} differ)"
+    return None
+
+
 def _record(builder, layout: dict) -> None:
     payload = {"layout": layout, "labelling": labelling_fingerprint(builder)}
     files.write_json(_path(builder), payload, sort_keys=True, default=str)
@@ -224,7 +268,14 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None, *, beam_option
     if builder.is_prepared():
         if real:
             _check(builder, _manual_dir(builder, manual_dir))
-        return False
+            return False
+        if (stale := synthetic_staleness(builder)) is None:
+            return False
+        log.warning("%s/%s in %s: %s; building it again", builder.name,
+                    builder.builder_config.name, builder.data_dir, stale)
+        with build_lock(builder):
+            if builder.is_prepared() and synthetic_staleness(builder) is not None:
+                shutil.rmtree(builder.data_dir)
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
     dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -86,3 +87,56 @@ def test_the_camera_place_in_the_data_spec_is_not_part_of_the_labelling(tmp_path
     assert provenance.labelling_fingerprint(builder)["digest"] == before
     monkeypatch.setattr(schedule, "load_spec", lambda name: {**spec, "timezone": "UTC"})
     assert provenance.labelling_fingerprint(builder)["digest"] != before
+
+
+def test_a_synthetic_build_of_another_world_version_is_built_again(
+        tmp_path, tmp_path_factory, monkeypatch, caplog):
+    from rp_jax.datasets import loading
+    from rp_jax.sources.synthetic import output_folder, presets
+    from tests.datasets._tiny import tiny_data_copy
+
+    data_dir = tiny_data_copy(tmp_path_factory, ["robotcar"], tmp_path / "d")
+
+    def builder():
+        return loading.get_builder("robotcar", config="synthetic_tiny", data_dir=data_dir,
+                                   workers=1)
+
+    b = builder()
+    now = presets.world_version("robotcar")
+    record = json.loads((Path(b.data_dir) / provenance.BUILT_FROM_JSON).read_text())
+    assert record["synthetic"]["preset"] == "robotcar" and record["synthetic"]["world"] == now
+    assert record["synthetic"]["size"] == "tiny"
+    assert provenance.synthetic_staleness(b) is None
+    assert provenance.prepare(b) is False  # this world, these settings: kept as built
+    train_before = b.info.splits["train"].num_examples
+
+    # The code moves the world on: the build and its layout are made again, saying why.
+    monkeypatch.setitem(presets._PRESET_WORLD_VERSIONS, "robotcar", now + 1)
+    assert f"version {now} of the synthetic robotcar world" in provenance.synthetic_staleness(b)
+    with caplog.at_level("WARNING"):
+        loading.load_columns("robotcar", "train", keys=("label",), config="synthetic_tiny",
+                             data_dir=data_dir)
+    assert "builds it again" in caplog.text and f"renders version {now + 1}" in caplog.text
+    assert provenance.prepare(b) is True
+    assert provenance.synthetic_staleness(b) is None
+    layout = output_folder.folder_parameters(b.synthetic_layout_root())
+    assert layout["world"] == now + 1
+    assert b.info.splits["train"].num_examples == builder().info.splits["train"].num_examples
+    assert train_before > 0
+
+
+def test_a_synthetic_build_without_its_world_or_with_other_labelling_is_stale(
+        tmp_path, tmp_path_factory, monkeypatch):
+    from rp_jax.datasets import loading
+    from tests.datasets._tiny import tiny_data_copy
+
+    data_dir = tiny_data_copy(tmp_path_factory, ["robotcar"], tmp_path / "d")
+    b = loading.get_builder("robotcar", config="synthetic_tiny", data_dir=data_dir, workers=1)
+    assert provenance.synthetic_staleness(b) is None
+    fp = provenance.labelling_fingerprint(b)
+    monkeypatch.setattr(provenance, "labelling_fingerprint",
+                        lambda b: {**fp, "digest": "other", "version": "0.0.1"})
+    assert "other settings (version differ)" in provenance.synthetic_staleness(b)
+    monkeypatch.undo()
+    (Path(b.data_dir) / provenance.BUILT_FROM_JSON).unlink()  # a build older than the record
+    assert "before builds recorded" in provenance.synthetic_staleness(b)

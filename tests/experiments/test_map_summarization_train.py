@@ -28,6 +28,23 @@ def _columns(calls: list):
     return columns
 
 
+def test_a_finished_run_trained_on_another_world_is_refused_not_loaded(tmp_path):
+    cfg = small_config(num_epochs=1)
+    cfg.input.validation_fraction = 0.25
+    built_now = {"dataset": "robotcar", "config": "synthetic_small", "labelling": "x",
+                 "world": 8, "layout": "robotcar_small"}
+    calls: list = []
+    mtrain._fit(cfg, tmp_path, _columns(calls), batch_size=64, progress=False,
+                identity=built_now)
+    assert json.loads((tmp_path / "trained_on.json").read_text()) == built_now
+    mtrain._fit(cfg, tmp_path, _columns(calls), batch_size=64, progress=False,
+                identity=built_now)
+    assert calls == [1]  # loaded, not trained again
+    with pytest.raises(train.WorkdirMismatchError, match="synthetic world version 8 then, 9"):
+        mtrain._fit(cfg, tmp_path, _columns(calls), batch_size=64, progress=False,
+                    identity={**built_now, "world": 9})
+
+
 def test_a_finished_run_is_loaded_without_its_records_or_its_lock(tmp_path):
     cfg = small_config(num_epochs=1)
     cfg.input.validation_fraction = 0.25

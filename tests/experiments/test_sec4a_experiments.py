@@ -12,6 +12,7 @@ from experiments import cli
 from experiments.cmu_seasons.config import get_config as cmu_config
 from experiments.robotcar_day.config import get_config as robotcar_day_config
 from experiments.webcam_clipart.config import get_config as webcam_config
+from rp_jax.sources.synthetic.presets import world_version
 from tests.datasets._tiny import tiny_data_copy
 
 KEYS = {"test_mse", "test_mae", "curve_corr", "baselines", "counts", "timings", "curves", "figures"}
@@ -64,6 +65,10 @@ def test_experiment_tiny(tmp_path, tmp_path_factory, monkeypatch, name, get_conf
         assert mse_slot * (1 - 1e-9) <= mse <= T * mse_slot * (1 + 1e-9), m
     assert metrics["counts"]["train"] > 0 and metrics["counts"]["test"] > 0
     assert len(metrics["curves"]["gt"]) == len(metrics["schedule"]["labels"])
+    # The workdir says which records its model learnt: a run after the world moves on
+    # refuses it instead of loading it (tests/experiments/test_records.py).
+    trained_on = json.loads((workdir / "trained_on.json").read_text())
+    assert trained_on["dataset"] == name and trained_on["world"] == world_version(name)
     # What the points detected at each timestamp keep at every other: a T x T map each.
     by_source = metrics["by_source_slot"]
     assert np.asarray(by_source["gt"], float).shape == (T, T) == np.asarray(
