@@ -117,7 +117,14 @@ def test_a_synthetic_build_of_another_world_version_is_built_again(
         loading.load_columns("robotcar", "train", keys=("label",), config="synthetic_tiny",
                              data_dir=data_dir)
     assert "builds it again" in caplog.text and f"renders version {now + 1}" in caplog.text
+    from rp_jax.datasets import outcomes
+
+    # The per-pair outcomes written beside the old records.
+    sidecar = outcomes.sidecar_dir(data_dir, "robotcar", "synthetic_tiny", b.version)
+    (sidecar / "train").mkdir(parents=True)
+    (sidecar / "train" / "vp.npz").write_bytes(b"old rows")
     assert provenance.prepare(b) is True
+    assert not sidecar.exists()
     assert provenance.synthetic_staleness(b) is None
     layout = output_folder.folder_parameters(b.synthetic_layout_root())
     assert layout["world"] == now + 1
