@@ -620,13 +620,17 @@ def suite_times_table(data: Mapping | None) -> str:
     programs (``experiments/results/suite_times.json``)."""
     if not data:
         return "_No suite timing is committed under `experiments/results/`._\n"
-    runs = data["runs"]
-    lines = ["| suite | tests | pytest wall | `make test` wall | user CPU |",
-             "|---|---|---|---|---|"]
-    lines += [f"| {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | {r['make_test_s']:.0f} s "
-              f"| {r['user_s']:.0f} s |" for r in runs]
-    before = runs[0]["pytest_s"]
-    shares = ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %" for r in runs[1:])
+
+    def table(runs) -> tuple[list[str], str]:
+        rows = ["| suite | tests | pytest wall | `make test` wall | user CPU |",
+                "|---|---|---|---|---|"]
+        rows += [f"| {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
+                 f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s |" for r in runs]
+        before = runs[0]["pytest_s"]
+        return rows, ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %"
+                               for r in runs[1:])
+
+    lines, shares = table(data["runs"])
     prof = data["profile"]
     jax = prof["jax_s"]
     lines += ["", f"Pytest wall against the suite before: {shares}. A cold run's workers "
@@ -634,6 +638,10 @@ def suite_times_table(data: Mapping | None) -> str:
               f"JAX programs (tracing {jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, "
               f"XLA's compile {jax['compile']:.0f} s; the timing plugin below).", "",
               f"Measured on {data['date']}; {data['machine']}; {data['what']}."]
+    for other in data.get("other_machines", ()):  # the same pair on another CPU kind
+        rows, shares = table(other["runs"])
+        lines += ["", f"On {other['machine']} ({other['date']}; {other['what']}):", "", *rows,
+                  "", f"Pytest wall against the suite before: {shares}."]
     return "\n".join(lines) + "\n"
 
 
