@@ -186,13 +186,17 @@ def _check(builder, manual_dir: Path) -> None:
             + f"): {remedy}"
         )
     if old_labelling.get("digest") != labelling["digest"]:
-        changed = sorted(k for k in labelling if k != "digest"
-                         and old_labelling.get(k) != json.loads(json.dumps(labelling[k],
-                                                                            default=str)))
         raise BuiltFromAnotherLayoutError(
-            f"{where} was labelled with other settings ({', '.join(changed) or 'unknown'} "
-            f"differ): {remedy}"
+            f"{where} was labelled with other settings "
+            f"({_labelling_changes(old_labelling, labelling)} differ): {remedy}"
         )
+
+
+def _labelling_changes(old: dict, new: dict) -> str:
+    """The fields of two ``labelling_fingerprint`` records that differ, in words."""
+    changed = sorted(k for k in new if k != "digest"
+                     and old.get(k) != json.loads(json.dumps(new[k], default=str)))
+    return ", ".join(changed) or "unknown"
 
 
 def record_synthetic(builder, marker: dict) -> None:
@@ -224,9 +228,7 @@ def synthetic_staleness(builder) -> str | None:
     labelling = labelling_fingerprint(builder)
     old = built.get("labelling") or {}
     if old.get("digest") != labelling["digest"]:
-        changed = sorted(k for k in labelling if k != "digest"
-                         and old.get(k) != json.loads(json.dumps(labelling[k], default=str)))
-        return f"it was labelled with other settings ({', '.join(changed) or 'unknown'} differ)"
+        return f"it was labelled with other settings ({_labelling_changes(old, labelling)} differ)"
     return None
 
 
