@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["EVALUATION_KEYS", "TRAINED_ON_JSON", "build_dataset", "check_trained_on",
-           "model_keys", "model_source", "records_identity", "split_validation", "subset"]
+           "model_keys", "model_source", "record_trained_on", "records_identity",
+           "split_validation", "subset"]
 
 log = logging.getLogger(__name__)
 
@@ -51,14 +52,15 @@ def _builder(config):
     )
 
 
-def records_identity(config) -> dict:
+def records_identity(config, builder=None) -> dict:
     """What the records of ``config.input`` are as this code builds them, without building
     anything: the dataset and config, the labelling's digest, and the synthetic world's
-    version and layout folder (a real build: the download's folder)."""
+    version and layout folder (a real build: the download's folder). ``builder``: that
+    config's builder, where the caller has it."""
     from rp_jax.datasets import provenance
     from rp_jax.sources.synthetic import presets
 
-    builder = _builder(config)
+    builder = builder or _builder(config)
     cfg = builder.builder_config
     identity = {"dataset": builder.DATASET, "config": cfg.name,
                 "labelling": provenance.labelling_fingerprint(builder)["digest"]}
@@ -103,21 +105,27 @@ def check_trained_on(workdir: Path, identity: dict) -> None:
                     "delete it to train on the records built now", workdir)
 
 
+def record_trained_on(workdir: Path, identity: dict) -> None:
+    """Write ``identity`` into ``workdir`` (``check_trained_on`` reads it) unless it is there."""
+    from rp_jax import files
+
+    if not (Path(workdir) / TRAINED_ON_JSON).is_file():
+        files.write_json(Path(workdir) / TRAINED_ON_JSON, dict(identity), sort_keys=True)
+
+
 def build_dataset(config, workdir: Path) -> dict:
     """Every split's columns of ``config.input``'s dataset, built (or built again) where
     needed; ``workdir`` (which trains on them) is checked against them and records them
     (``check_trained_on``)."""
-    from rp_jax import files
     from rp_jax.datasets import loading, provenance
 
-    identity = records_identity(config)
-    check_trained_on(workdir, identity)
     builder = _builder(config)
+    identity = records_identity(config, builder)
+    check_trained_on(workdir, identity)
     # Builds unless built (again where this code builds another world or labelling); a real
     # dataset built from another download is refused.
     provenance.prepare(builder, config.input.manual_dir or None)
-    if not (Path(workdir) / TRAINED_ON_JSON).is_file():
-        files.write_json(Path(workdir) / TRAINED_ON_JSON, identity, sort_keys=True)
+    record_trained_on(workdir, identity)
     keys = tuple(dict.fromkeys(model_keys() + EVALUATION_KEYS))
     return {
         split: loading.load_columns(

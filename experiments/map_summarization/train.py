@@ -74,8 +74,8 @@ def _fit(cfg, rp_dir: Path, columns: Callable[[], tuple[dict, dict]], *, batch_s
                 f"{saved.get('asked')}, asked {asked}; use another folder or delete it")
         return predict.load(rp_dir, batch_size=batch_size), saved["counts"]
     cols, more_counts = columns()
-    if identity is not None and not (rp_dir / records.TRAINED_ON_JSON).is_file():
-        files.write_json(rp_dir / records.TRAINED_ON_JSON, dict(identity), sort_keys=True)
+    if identity is not None:
+        records.record_trained_on(rp_dir, identity)
     val_mask = records.split_validation(cols["viewpoint"], cfg.input.validation_fraction,
                                            cfg.seed)
     train_cols = {k: v[~val_mask] for k, v in cols.items()}
