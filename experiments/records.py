@@ -99,10 +99,23 @@ def check_trained_on(workdir: Path, identity: dict) -> None:
                 f"{workdir} holds a model trained on other {identity['dataset']} records than "
                 f"this code builds ({', '.join(differ)} differ{world}): use another workdir "
                 "or delete it")
-    elif (Path(workdir) / "metrics.jsonl").is_file():
+    elif (Path(workdir) / "metrics.jsonl").is_file() and _warn_once(workdir):
         log.warning("%s was trained before runs recorded which records they were trained on: "
                     "if the synthetic world or the labelling changed since (CHANGELOG), "
                     "delete it to train on the records built now", workdir)
+
+
+_WARNED: set[Path] = set()
+
+
+def _warn_once(workdir: Path) -> bool:
+    """True the first time this process asks about ``workdir`` (however it is spelt): a run
+    checks its predictor's folder at every stage that loads it, and one warning says it."""
+    key = Path(workdir).resolve()
+    if key in _WARNED:
+        return False
+    _WARNED.add(key)
+    return True
 
 
 def record_trained_on(workdir: Path, identity: dict) -> None:

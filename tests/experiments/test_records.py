@@ -52,4 +52,8 @@ def test_a_workdir_trained_on_another_world_is_refused_before_any_build(
     (workdir / "metrics.jsonl").write_text("{}\n")
     with caplog.at_level("WARNING"):
         records.check_trained_on(workdir, identity)
-    assert "before runs recorded which records" in caplog.text
+        # A run checks the folder at every stage that loads it, by relative and absolute
+        # paths: one warning says it.
+        records.check_trained_on(workdir.resolve(), identity)
+        records.check_trained_on(workdir / ".." / workdir.name, identity)
+    assert caplog.text.count("before runs recorded which records") == 1
