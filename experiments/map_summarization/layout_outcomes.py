@@ -4,7 +4,7 @@ Paper: Sec. V-B (the localization pipeline whose outcomes are the labels) and Se
 (the map points a summary keeps). The outcome scorer (``rp_jax.mapsum.outcome_scorer``)
 learns, for a map point and a query's time, the probability that the point is a PnP-RANSAC
 inlier of a correct pose. On the Extended CMU Seasons layout its labels come from the
-training slices of each world (``outcome_scorer.slice_outcomes``); a layout with one map
+training slices of each world (``outcome_labels.slice_outcomes``); a layout with one map
 per world (RobotCar Seasons: one reference traversal) has no training slice, so its labels
 come from **other worlds**: label world seeds that the run never evaluates on
 (``config.map.outcome_seeds``, disjoint from ``config.map.seeds``).
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.map_summarization import outcome_scorer, seed_processes
+from experiments.map_summarization import outcome_labels, outcome_scorer, seed_processes
 from experiments.map_summarization.world import Layout, localization_kwargs
 from rp_jax.mapsum.localization_outcomes import OutcomeLabels, labels_of_queries
 
@@ -66,7 +66,7 @@ def _fingerprint(config, layout: Layout) -> str:
     from rp_jax.mapsum.outcome_scorer import FEATURE_VERSION
     from rp_jax.sources.synthetic import presets
 
-    settings = {k: config.map.get(k) for k in outcome_scorer.LABEL_SETTINGS}
+    settings = {k: config.map.get(k) for k in outcome_labels.LABEL_SETTINGS}
     settings.update(layout=layout.name, world=presets.world_version(layout.name), format=1,
                     features=int(FEATURE_VERSION))
     text = json.dumps(settings, sort_keys=True, default=str)
@@ -136,10 +136,10 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
         [q["time"].isoformat(timespec="seconds") for q in queries],
         group=f"{layout.name}/seed{seed}")
     obs = world.observations
-    point_table = outcome_scorer.map_point_table(
+    point_table = outcome_labels.map_point_table(
         config, world.reconstruction, world.map_points, obs.descriptors, world.point_rep,
         world.point_descriptors, world.point_categories, obs.keypoint)
-    query_table = outcome_scorer.query_table([q["time"] for q in queries],
+    query_table = outcome_labels.query_table([q["time"] for q in queries],
                                              [q["image_path"] for q in queries], place)
     labels.save(path, point_table=point_table, query_table=query_table,
                 fingerprint=np.asarray(fingerprint))
@@ -156,7 +156,7 @@ def train_layout_scorers(config, layout: Layout, workdir: Path, *,
     ``outcome_scorer.OutcomeScorers`` whose query times are read at ``place``."""
     seeds = label_seeds(config) if seeds is None else list(seeds)
     workdir = Path(workdir)
-    out_dir = workdir / outcome_scorer.LABEL_DIR
+    out_dir = workdir / outcome_labels.LABEL_DIR
     processes = int(config.map.get("processes", 1))
     todo = []
     if processes > 1:

@@ -13,7 +13,7 @@ finished seed, in seed order. The outcomes are those of one process: each proces
 the run's trained models from the workdir (trained there before, by the run) and refuses
 to evaluate if its fingerprint differs from the run's. The outcome scorer's label slices
 and label worlds, cached the same way, are made with ``run_in_processes`` before the
-scorers train (``outcome_scorer.label_slice``, ``layout_outcomes.label_world``).
+scorers train (``outcome_labels.label_slice``, ``layout_outcomes.label_world``).
 
 A driver module (``experiments.map_summarization.conditions``, ...) provides
 ``evaluate_seed(config, workdir, seed, fingerprint)``: load its models from ``workdir``,

@@ -144,18 +144,18 @@ def test_outputs_written_and_a_rerun_reuses_the_seed(tiny_run):
 def test_a_label_slice_in_a_process_of_its_own_gives_the_same_labels(tiny_run, tmp_path):
     import shutil
 
-    from experiments.map_summarization import outcome_scorer
+    from experiments.map_summarization import outcome_labels
     from experiments.map_summarization.seed_processes import run_in_processes
 
     workdir, _, argv = tiny_run
     config, _ = parse(argv)
-    (done,) = sorted((workdir / outcome_scorer.LABEL_DIR).glob("seed*_slice*.npz"))
+    (done,) = sorted((workdir / outcome_labels.LABEL_DIR).glob("seed*_slice*.npz"))
     seed, slice_id = (int(x) for x in done.stem[len("seed"):].split("_slice"))
     shutil.copytree(workdir / "rp", tmp_path / "rp")  # the run's RobotCar RP, loaded there
-    run_in_processes(f"{outcome_scorer.__name__}:label_slice",
+    run_in_processes(f"{outcome_labels.__name__}:label_slice",
                      [(config, tmp_path, seed, slice_id)], [done.stem], 2, workdir=tmp_path,
                      progress=False)
-    with np.load(tmp_path / outcome_scorer.LABEL_DIR / done.name) as ours, \
+    with np.load(tmp_path / outcome_labels.LABEL_DIR / done.name) as ours, \
             np.load(done) as theirs:
         assert sorted(ours.files) == sorted(theirs.files)
         for k in ours.files:

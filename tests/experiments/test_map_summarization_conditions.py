@@ -337,7 +337,7 @@ def test_seeds_in_processes_give_the_outcomes_of_one_process(tiny, tmp_path, cap
 def test_a_label_world_in_a_process_of_its_own_gives_the_same_labels(tiny, tmp_path):
     import numpy as np
 
-    from experiments.map_summarization import layout_outcomes, outcome_scorer
+    from experiments.map_summarization import layout_outcomes, outcome_labels
     from experiments.map_summarization.seed_processes import run_in_processes
 
     workdir, _ = tiny
@@ -349,7 +349,7 @@ def test_a_label_world_in_a_process_of_its_own_gives_the_same_labels(tiny, tmp_p
                      [(config, mc.ROBOTCAR_SEASONS, 1, tmp_path, mc.ROBOTCAR_LOCATION)],
                      ["label world 1"], 2, workdir=tmp_path, progress=False)
     with np.load(tmp_path / name) as ours, \
-            np.load(workdir / outcome_scorer.LABEL_DIR / name) as theirs:
+            np.load(workdir / outcome_labels.LABEL_DIR / name) as theirs:
         assert sorted(ours.files) == sorted(theirs.files)
         for k in ours.files:
             np.testing.assert_array_equal(ours[k], theirs[k], err_msg=k)

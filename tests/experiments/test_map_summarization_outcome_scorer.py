@@ -8,6 +8,7 @@ import jax
 import numpy as np
 import pytest
 
+from experiments.map_summarization import outcome_labels
 from experiments.map_summarization import outcome_scorer as eo
 from experiments.map_summarization.config import get_config
 from rp_jax.mapsum.outcome_scorer import (
@@ -29,7 +30,7 @@ def test_an_ensemble_scores_the_mean_probability_of_its_members():
     rng = np.random.default_rng(0)
     when = dt.datetime(2010, 6, 1, 12, tzinfo=dt.UTC)
     nowhere = Path("/nonexistent")
-    n_point, n_query = 5, eo.query_table([when], [nowhere]).shape[1]
+    n_point, n_query = 5, outcome_labels.query_table([when], [nowhere]).shape[1]
     net = OutcomeScorer(hidden=8, depth=1, time_aware=True)
     members = [jax.device_get(create_train_state(net, n_point, n_query, seed=s).params)
                for s in (0, 1)]
@@ -40,7 +41,7 @@ def test_an_ensemble_scores_the_mean_probability_of_its_members():
                                 {"outcome": members}, {"outcome": (pstd, qstd)},
                                 np.ones(n_point, bool), {})
     got = scorers.point_scores("outcome", table, when)
-    qrow = qstd(eo.query_table([when], [nowhere]))[0]
+    qrow = qstd(outcome_labels.query_table([when], [nowhere]))[0]
     each = [score_points(net, p, pstd(table), qrow) for p in members]
     assert not np.allclose(each[0], each[1])  # two members that differ
     np.testing.assert_allclose(got, (each[0] + each[1]) / 2, rtol=1e-6)
@@ -56,7 +57,7 @@ def test_validation_refuses_a_bad_field_before_any_work(tmp_path):
 
 def test_a_table_of_another_width_is_refused_naming_both():
     when = dt.datetime(2010, 6, 1, 12, tzinfo=dt.UTC)
-    n_query = eo.query_table([when], [Path("/nonexistent")]).shape[1]
+    n_query = outcome_labels.query_table([when], [Path("/nonexistent")]).shape[1]
     net = OutcomeScorer(hidden=8, depth=1, time_aware=True)
     params = jax.device_get(create_train_state(net, 4, n_query, seed=0).params)
     std = (Standardizer(np.zeros(4), np.ones(4)), Standardizer(np.zeros(n_query),
@@ -73,7 +74,8 @@ def test_the_query_table_reads_the_sun_at_the_given_place():
 
     when = [dt.datetime(2014, 12, 16, 17, 0, tzinfo=dt.UTC)]  # dusk in Oxford
     nowhere = [Path("/nonexistent")]
-    cmu, oxford = eo.query_table(when, nowhere), eo.query_table(when, nowhere, ROBOTCAR_LOCATION)
+    cmu = outcome_labels.query_table(when, nowhere)
+    oxford = outcome_labels.query_table(when, nowhere, ROBOTCAR_LOCATION)
     sun = [i for i, n in enumerate(QUERY_FEATURES) if n.startswith("sun_")]
     assert sun and not np.allclose(cmu[:, sun], oxford[:, sun])
     rest = [i for i in range(len(QUERY_FEATURES)) if i not in sun]

@@ -136,35 +136,6 @@ def test_standardizer_round_trip():
     np.testing.assert_array_equal(back(x), s(x))
 
 
-def test_training_slices_never_the_test_slice_nor_the_run_s_own():
-    from experiments.map_summarization import outcome_scorer as driver
-    from experiments.map_summarization.config import get_config
-
-    small = get_config("small")
-    assert driver.training_slices(small) == [6, 7, 9]  # a run on the test slice 8
-    small.map.slice = 6  # where recipes are chosen: trained without slice 6
-    assert driver.training_slices(small) == [7, 9]
-    tiny = get_config("tiny")  # the tiny world has slices 6 and 8 only
-    assert driver.training_slices(tiny) == [6]
-    tiny.map.slice = 6
-    with pytest.raises(ValueError, match="no training slice"):
-        driver.training_slices(tiny)
-
-
-def test_training_slices_of_a_given_layout_are_the_folders_it_has(tmp_path):
-    from experiments.map_summarization import outcome_scorer as driver
-    from experiments.map_summarization.config import get_config
-
-    config = get_config("small")
-    config.map.root = str(tmp_path)
-    for s in (7, 8):
-        (tmp_path / f"slice{s}").mkdir()
-    assert driver.training_slices(config) == [7]  # no slice6 or slice9 folder
-    (tmp_path / "slice7").rmdir()
-    with pytest.raises(ValueError, match=f"outside slice 8 in {tmp_path}"):
-        driver.training_slices(config)
-
-
 def test_feature_groups_cover_every_column_once():
     from experiments.map_summarization import outcome_scorer as driver
 
