@@ -520,11 +520,17 @@ def scorer_validation_table(results: Sequence[tuple[str, Mapping]],
                      f"{st.get('members', 1)} | "
                      f"{auc['outcome']:.3f} | {auc['outcome_agnostic']:.3f} | {mean:.3f} |")
     first = rows[0][5]
+    code = (first.get("provenance") or {}).get("code")
+    older = [f"`{name}`" for _, name, _, _, _, r in rows[1:]
+             if (r.get("provenance") or {}).get("code") != code]
+    others = (f" Made with other code than the first row (so with other point features or "
+              f"another RobotCar RP among them; each file's `provenance` says which): "
+              f"{', '.join(older)}." if older else "")
     return ("\n".join(lines) + f"\n\nInlier AUC on the labels of slice {first['slice']} of "
             f"world seeds {first['seeds']} ({first['validation']['pairs']:,} pairs of "
             f"{first['validation']['queries_correct']} correctly localized queries), the "
             f"scorers trained without that slice. Run of the first row: "
-            f"{run_caption(first)}.\n")
+            f"{run_caption(first)}.{others}\n")
 
 
 def recipe_selection_table(metrics: Mapping | None, path: Path = MAPSUM_SELECTION) -> str:

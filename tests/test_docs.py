@@ -308,6 +308,14 @@ def test_scorer_validation_ranks_the_settings_by_the_mean_of_both_scorers():
     assert rows == ["| `b` | 5, 6, 7 | 3,400 | 32 | 128 x 2, 6 | 3 | 0.800 | 0.830 | 0.815 |",
                     "| `a` | 0 | 1,200 | 31 | 64 x 2, 6 | 1 | 0.810 | 0.800 | 0.805 |"]
     assert "slice 6 of world seeds [0, 1, 2] (5,000 pairs of 60 correctly" in "\n".join(table)
+    assert "Made with other code" not in "\n".join(table)  # both rows from one commit
+    # A row made with other code (an earlier RP or other features) is named as such.
+    old = result([0], 64, 0.70, 0.70, 1200)
+    old["provenance"] = {**old["provenance"], "code": "git " + "e" * 40}
+    table = docs_tables.scorer_validation_table(
+        [("a", result([0], 64, 0.81, 0.80, 1200)), ("old", old),
+         ("b", result([5, 6, 7], 128, 0.80, 0.83, 3400))])
+    assert table.rstrip().endswith("each file's `provenance` says which): `old`.")
     assert "No scorer validation" in docs_tables.scorer_validation_table([])
     with pytest.raises(ValueError, match="not the layout"):
         docs_tables.scorer_validation_table([("a", {"variants": {}})])
