@@ -570,7 +570,8 @@ def main(argv: list[str] | None = None) -> int:
     def add_flags(parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--validate-slice", type=int, default=6,
                             help="training slice held out and scored (default 6)")
-        parser.add_argument("--validation-seeds", default="0",
+        parser.add_argument("--validation-seeds", type=cli.seed_list, default=(0,),
+                            metavar="A,B,...",
                             help="world seeds of the held-out slice's labels (default 0)")
         parser.add_argument("--ablation", action="store_true",
                             help="also train without each feature group")
@@ -584,9 +585,9 @@ def main(argv: list[str] | None = None) -> int:
         progress.set_quiet()
     platform.configure_cpu()
     try:
-        seeds = [int(s) for s in args.validation_seeds.split(",") if s.strip()]
         result = validate(config, Path(workdir).absolute(), slice_id=args.validate_slice,
-                          seeds=seeds, ablation=args.ablation, progress=not args.quiet)
+                          seeds=list(args.validation_seeds), ablation=args.ablation,
+                          progress=not args.quiet)
     except ValueError as e:
         print(f"python -m experiments.map_summarization.outcome_scorer: error: {e}",
               file=sys.stderr)

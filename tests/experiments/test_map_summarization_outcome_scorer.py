@@ -55,6 +55,22 @@ def test_validation_refuses_a_bad_field_before_any_work(tmp_path):
     assert not (tmp_path / "run" / "outcome_labels").exists()
 
 
+@pytest.mark.parametrize("flags, says", [
+    (["--validation-seeds", "x"], "argument --validation-seeds: 'x': expected comma-separated"),
+    (["--validate-slice", "8"], "slice 8 is the test slice"),
+])
+def test_the_command_refuses_bad_flags_naming_them_before_any_work(tmp_path, capsys, flags,
+                                                                    says):
+    code = None
+    try:
+        code = eo.main(["--workdir", str(tmp_path / "run"), "--quiet", *flags])
+    except SystemExit as e:  # argparse's own errors
+        code = e.code
+    assert code == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_table_of_another_width_is_refused_naming_both():
     when = dt.datetime(2010, 6, 1, 12, tzinfo=dt.UTC)
     n_query = outcome_labels.query_table([when], [Path("/nonexistent")]).shape[1]
