@@ -2,7 +2,8 @@
 validation viewpoints held out of the training split, and the model's input source.
 
 Shared by the Sec. IV-A drivers (``experiments.sec4a``), their cross-validation, the
-conditional experiments and the map-summarization driver's predictors.
+conditional experiments and the map-summarization driver's predictors; ``load_pairs`` adds a
+split's per-pair outcomes, which the conditional predictor learns from.
 """
 
 from __future__ import annotations
@@ -14,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["EVALUATION_KEYS", "TRAINED_ON_JSON", "build_dataset", "check_trained_on",
-           "model_keys", "model_source", "record_trained_on", "records_identity",
-           "split_validation", "subset"]
+           "load_pairs", "model_keys", "model_source", "record_trained_on",
+           "records_identity", "split_validation", "subset"]
 
 log = logging.getLogger(__name__)
 
@@ -167,3 +168,27 @@ def model_source(columns: dict):
     from rp_jax.datasets.input_pipeline import ArraySource
 
     return ArraySource({k: columns[k] for k in model_keys()}, model_keys())
+
+
+def load_pairs(config, workdir: Path, split: str = "train", *, with_year: bool = False):
+    """A split's columns (for the paper's predictor), its pair arrays (for the conditional
+    one, ``rp_jax.conditional.pairs``; ``with_year``: with the capture years a decay basis
+    reads) and its per-pair outcome sidecar, building the dataset and the sidecar if absent.
+    """
+    from rp_jax.conditional import pairs
+    from rp_jax.datasets import loading, outcomes
+
+    columns = build_dataset(config, workdir)[split]
+    i = config.input
+    data_dir = i.data_dir or None
+    columns["keypoint_id"] = loading.load_columns(
+        i.dataset, split, keys=("keypoint_id",), config=i.data_config, data_dir=data_dir
+    )["keypoint_id"]
+    try:
+        sidecar = outcomes.load(i.dataset, split, config=i.data_config, data_dir=data_dir)
+    except FileNotFoundError:
+        builder = loading.get_builder(i.dataset, config=i.data_config, data_dir=data_dir)
+        outcomes.build(builder, manual_dir=i.manual_dir or None)
+        sidecar = outcomes.load(i.dataset, split, config=i.data_config, data_dir=data_dir)
+    rows = outcomes.join(columns, sidecar)
+    return columns, pairs.from_records(columns, sidecar, rows, with_year=with_year), sidecar

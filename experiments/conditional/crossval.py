@@ -80,26 +80,10 @@ def run(config: ml_collections.ConfigDict, workdir: str | Path, ablation: str | 
 
 
 def load_pairs(config: ml_collections.ConfigDict, workdir: Path, split: str = "train"):
-    """A split's columns (for the paper's predictor), its pair arrays (for the conditional
-    one) and its sidecar, building the dataset and its per-pair outcomes if absent."""
-    from rp_jax.conditional import pairs
-    from rp_jax.datasets import loading, outcomes
-
-    columns = records.build_dataset(config, workdir)[split]
-    i = config.input
-    data_dir = i.data_dir or None
-    columns["keypoint_id"] = loading.load_columns(
-        i.dataset, split, keys=("keypoint_id",), config=i.data_config, data_dir=data_dir
-    )["keypoint_id"]
-    try:
-        sidecar = outcomes.load(i.dataset, split, config=i.data_config, data_dir=data_dir)
-    except FileNotFoundError:
-        builder = loading.get_builder(i.dataset, config=i.data_config, data_dir=data_dir)
-        outcomes.build(builder, manual_dir=i.manual_dir or None)
-        sidecar = outcomes.load(i.dataset, split, config=i.data_config, data_dir=data_dir)
-    rows = outcomes.join(columns, sidecar)
-    with_year = bool(config_lib.decay_time_scales(config))  # what a decay basis reads
-    return columns, pairs.from_records(columns, sidecar, rows, with_year=with_year), sidecar
+    """``records.load_pairs`` with the capture years wherever the config's model has a decay
+    basis (``config.model.decay_time_scales``)."""
+    return records.load_pairs(config, workdir, split,
+                              with_year=bool(config_lib.decay_time_scales(config)))
 
 
 def _settings(config):

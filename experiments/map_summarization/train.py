@@ -239,7 +239,7 @@ def train_conditional_predictor(
 
     from flax import serialization
 
-    from experiments.conditional.crossval import load_pairs
+    from experiments.conditional.config import decay_time_scales
     from rp_jax import files
     from rp_jax.conditional import pairs
     from rp_jax.conditional import train as ctrain
@@ -249,7 +249,8 @@ def train_conditional_predictor(
     cfg = cmu_config(config)
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    columns, arrays, _ = load_pairs(cfg, workdir)
+    columns, arrays, _ = records.load_pairs(cfg, workdir,
+                                            with_year=bool(decay_time_scales(cfg)))
     slice_of = np.array([(v.decode() if isinstance(v, bytes) else str(v)).split("/")[0]
                          for v in columns["viewpoint"]])
     keep = ~np.isin(slice_of, [f"slice{s}" for s in exclude_slices])
