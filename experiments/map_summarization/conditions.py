@@ -59,6 +59,15 @@ import numpy as np
 
 from experiments import provenance, run_files
 from experiments.map_summarization import layout_outcomes, methods, seed_processes
+from experiments.map_summarization.conditions_protocol import (
+    CONDITION_GROUPS,
+    CONTRASTS,
+    EVIDENCE,
+    PRIMARY_GROUP,
+    PRIMARY_RATIOS,
+    PRIMARY_THRESHOLDS,
+)
+from experiments.map_summarization.conditions_report import markdown
 from experiments.map_summarization.config import get_config as mapsum_config
 from experiments.map_summarization.pooling import (
     MAIN_THRESHOLD,
@@ -93,16 +102,6 @@ BASE_ROWS = (*methods.BASELINES, *methods.ORACLE_ROWS)
 RP_ROWS = ("rp_paper",)
 OUTCOME_ROWS = ("outcome_top", "outcome_agnostic_top")
 ROWS = (*BASE_ROWS, *RP_ROWS, *OUTCOME_ROWS)
-# Exploratory paired comparisons beside K-cover's: (row, against).
-CONTRASTS = (("outcome_top", "outcome_agnostic_top"),)
-# The conditions by their light: both nights are lit by street lamps and windows only
-# (the sun 20 deg below the horizon at their start), dawn and dusk by a low sun (about
-# 7 deg; rp_jax.sources.robotcar_seasons.TRAVERSALS), the rest by day.
-CONDITION_GROUPS = {
-    "night": ("night", "night-rain"),
-    "twilight": ("dawn", "dusk"),
-    "day": ("overcast-summer", "overcast-winter", "rain", "snow", "sun"),
-}
 # Labels in this layout's words: a query's "date" is its traversal, one per condition; the
 # paper's rule scores with the whole-day RP.
 CONDITION_LABELS = {
@@ -111,9 +110,6 @@ CONDITION_LABELS = {
     "oracle_date": "oracle: own condition's re-detection, query left out",
     "oracle_inliers": "oracle: all other conditions' PnP inliers",
 }
-PRIMARY_GROUP = "night"
-PRIMARY_RATIOS = ("0.8", "0.9")
-PRIMARY_THRESHOLDS = ("0.5m_5deg", "5m_10deg")
 REFERENCE_MODEL_DIR = "_synthetic/reference_model"
 # Written by ``night_factors --write-layouts`` into a world's copy whose frames it changed.
 COUNTERFACTUAL_JSON = "_synthetic/counterfactual.json"
@@ -314,9 +310,6 @@ def _subset(per_seed: Sequence[Mapping], conditions: Sequence[str], ratios) -> d
                                       "paired_interval", "oracle_date_vs_agnostic",
                                       "full_map_accuracy")},
             "contrasts": contrasts(sub, ratios, list(sub[0]["outcomes"]))}
-
-
-EVIDENCE = ("keypoints", "redetected", "full_map_matches", "full_map_inliers")
 
 
 def query_evidence(per_seed: Sequence[Mapping], conditions: Sequence[str]) -> dict | None:
@@ -538,9 +531,6 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
     metrics["timings"] = {**timings,
                           "per_seed": {str(s["seed"]): s["timings"] for s in per_seed}}
     run_files.write_json(workdir / "metrics.json", metrics)
-    # Imported here: the report module reads this module's comparisons.
-    from experiments.map_summarization.conditions_report import markdown
-
     files.write_text(workdir / "report.md", markdown(metrics))
     return metrics
 

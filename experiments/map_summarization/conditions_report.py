@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from experiments.map_summarization.conditions import (
+from experiments.map_summarization.conditions_protocol import (
     CONTRASTS,
     EVIDENCE,
     PRIMARY_RATIOS,
