@@ -9,5 +9,16 @@ and ``python -m rp_jax.datasets build|curves`` on the command line.
 Importing this package is light (no TFDS): import the submodules you need.
 """
 
+from pathlib import Path
+
 DATASET_NAMES = ("webcam_clipart", "cmu_seasons", "robotcar", "robotcar_day")
 CONFIG_NAMES = ("synthetic", "synthetic_small", "synthetic_tiny", "real")
+# A build's per-pair outcomes (``outcomes``) live beside its records, in
+# ``<data_dir>/rp_jax_outcomes/<dataset>/<config>/<version>``: written by ``outcomes``,
+# dropped with the records by a rebuild (``provenance``).
+SIDECAR_ROOT = "rp_jax_outcomes"
+
+
+def sidecar_dir(data_dir: str | Path, dataset: str, config: str, version: str) -> Path:
+    """The per-pair outcomes of ``dataset``/``config`` at TFDS ``version`` in ``data_dir``."""
+    return Path(data_dir) / SIDECAR_ROOT / dataset / config / str(version)

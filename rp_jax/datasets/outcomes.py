@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from rp_jax import files, worker_processes
-from rp_jax.datasets import capture_conditions
+from rp_jax.datasets import capture_conditions, sidecar_dir
 
 __all__ = ["FORMAT_VERSION", "build", "image_conditions", "join", "load", "sidecar_dir",
            "viewpoint_outcomes"]
@@ -61,14 +61,8 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 5
 # Older formats whose rows are still valid: only the per-image fields change.
 _REFRESHABLE_FORMATS = (2, 3, 4)
-SIDECAR_ROOT = "rp_jax_outcomes"
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")
-
-
-def sidecar_dir(data_dir: str | Path, dataset: str, config: str, version: str) -> Path:
-    """The sidecar of ``dataset``/``config`` at TFDS ``version`` in ``data_dir``."""
-    return Path(data_dir) / SIDECAR_ROOT / dataset / config / str(version)
 
 
 def _builder_sidecar(builder) -> Path:

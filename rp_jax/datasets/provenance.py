@@ -277,13 +277,13 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None, *, beam_option
                     builder.builder_config.name, builder.data_dir, stale)
         with build_lock(builder):
             if builder.is_prepared() and synthetic_staleness(builder) is not None:
-                from rp_jax.datasets import outcomes
+                from rp_jax.datasets import sidecar_dir
 
                 shutil.rmtree(builder.data_dir)
                 # The per-pair outcomes written beside it are the old records' rows.
-                shutil.rmtree(outcomes.sidecar_dir(builder._data_dir_root, builder.DATASET,
-                                                   builder.builder_config.name,
-                                                   builder.version), ignore_errors=True)
+                shutil.rmtree(sidecar_dir(builder._data_dir_root, builder.DATASET,
+                                          builder.builder_config.name, builder.version),
+                              ignore_errors=True)
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
     dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir),
