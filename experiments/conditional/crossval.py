@@ -39,7 +39,7 @@ from rp_jax import schedule as schedule_lib
 from rp_jax.configs import default as configs_default
 from rp_jax.progress import bar as tqdm  # the one progress helper
 
-__all__ = ["cross_validate", "load_pairs", "markdown", "parse_variants", "per_scene_scores", "run"]
+__all__ = ["cross_validate", "markdown", "parse_variants", "per_scene_scores", "run"]
 
 
 def parse_variants(text: str) -> list[tuple[str, ...]]:
@@ -77,13 +77,6 @@ def run(config: ml_collections.ConfigDict, workdir: str | Path, ablation: str | 
     print(markdown(result))
     print(f"wrote {workdir}/conditional.json and conditional.md")
     return 0
-
-
-def load_pairs(config: ml_collections.ConfigDict, workdir: Path, split: str = "train"):
-    """``records.load_pairs`` with the capture years wherever the config's model has a decay
-    basis (``config.model.decay_time_scales``)."""
-    return records.load_pairs(config, workdir, split,
-                              with_year=bool(config_lib.decay_time_scales(config)))
 
 
 def _settings(config):
@@ -203,7 +196,9 @@ def cross_validate(config: ml_collections.ConfigDict, workdir: str | Path,
     """
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
-    columns, arrays, sidecar = load_pairs(config, workdir)
+    # The capture years where the model has a decay basis (``config.model.decay_time_scales``).
+    columns, arrays, sidecar = records.load_pairs(
+        config, workdir, with_year=bool(config_lib.decay_time_scales(config)))
     paper = paper_crossval.cross_validate(config_lib.paper_config(config), workdir / "paper",
                                           columns, num_folds=num_folds, progress=progress)
     T = schedule_lib.preset(config.input.schedule).num_timestamps

@@ -22,3 +22,9 @@ SIDECAR_ROOT = "rp_jax_outcomes"
 def sidecar_dir(data_dir: str | Path, dataset: str, config: str, version: str) -> Path:
     """The per-pair outcomes of ``dataset``/``config`` at TFDS ``version`` in ``data_dir``."""
     return Path(data_dir) / SIDECAR_ROOT / dataset / config / str(version)
+
+
+def builder_sidecar_dir(builder) -> Path:
+    """``sidecar_dir`` of a TFDS builder's dataset, config and version."""
+    return sidecar_dir(builder._data_dir_root, builder.DATASET, builder.builder_config.name,
+                       builder.version)

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from rp_jax import files, worker_processes
-from rp_jax.datasets import capture_conditions, sidecar_dir
+from rp_jax.datasets import builder_sidecar_dir, capture_conditions, sidecar_dir
 
 __all__ = ["FORMAT_VERSION", "build", "image_conditions", "join", "load", "sidecar_dir",
            "viewpoint_outcomes"]
@@ -63,11 +63,6 @@ FORMAT_VERSION = 5
 _REFRESHABLE_FORMATS = (2, 3, 4)
 _INDEX = "outcomes.json"
 _ROW_KEYS = ("outcome", "row_image", "keypoint_id")
-
-
-def _builder_sidecar(builder) -> Path:
-    return sidecar_dir(builder._data_dir_root, builder.DATASET, builder.builder_config.name,
-                       builder.version)
 
 
 def viewpoint_outcomes(job) -> dict[str, np.ndarray]:
@@ -153,7 +148,7 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
         raise ValueError(f"{builder.DATASET}/{builder.builder_config.name} is not built in "
                          f"{builder._data_dir_root}; build it first (python -m rp_jax.datasets "
                          "build ...)")
-    directory = _builder_sidecar(builder)
+    directory = builder_sidecar_dir(builder)
     jobs = builder.split_jobs(builder.local_download_manager(manual_dir))
     todo = [(job, _file_of(directory, split, job.viewpoint))
             for split, split_jobs in jobs.items() for job in split_jobs]
@@ -217,7 +212,7 @@ def load(name: str, split: str, *, config: str = "synthetic",
     from rp_jax.groundtruth.cache import load_npz
 
     builder = loading.get_builder(name, config=config, data_dir=data_dir)
-    directory = _builder_sidecar(builder)
+    directory = builder_sidecar_dir(builder)
     index_path = directory / _INDEX
     if not index_path.is_file():
         raise FileNotFoundError(

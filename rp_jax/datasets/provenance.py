@@ -202,8 +202,7 @@ def _labelling_changes(old: dict, new: dict) -> str:
 def record_synthetic(builder, marker: dict) -> None:
     """Write, beside a synthetic build's records, the marker of the world it read and its
     labelling (``RepeatabilityBuilder`` does, at the end of every build)."""
-    payload = {"synthetic": marker, "labelling": labelling_fingerprint(builder)}
-    files.write_json(_path(builder), payload, sort_keys=True, default=str)
+    _record(builder, synthetic=marker)
 
 
 def synthetic_staleness(builder) -> str | None:
@@ -232,8 +231,10 @@ def synthetic_staleness(builder) -> str | None:
     return None
 
 
-def _record(builder, layout: dict) -> None:
-    payload = {"layout": layout, "labelling": labelling_fingerprint(builder)}
+def _record(builder, **built_from: dict) -> None:
+    """``built_from.json``: what the build read (``layout=`` a download's fingerprint or
+    ``synthetic=`` a world's marker) and its labelling."""
+    payload = {**built_from, "labelling": labelling_fingerprint(builder)}
     files.write_json(_path(builder), payload, sort_keys=True, default=str)
 
 
@@ -277,13 +278,11 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None, *, beam_option
                     builder.builder_config.name, builder.data_dir, stale)
         with build_lock(builder):
             if builder.is_prepared() and synthetic_staleness(builder) is not None:
-                from rp_jax.datasets import sidecar_dir
+                from rp_jax.datasets import builder_sidecar_dir
 
                 shutil.rmtree(builder.data_dir)
                 # The per-pair outcomes written beside it are the old records' rows.
-                shutil.rmtree(sidecar_dir(builder._data_dir_root, builder.DATASET,
-                                          builder.builder_config.name, builder.version),
-                              ignore_errors=True)
+                shutil.rmtree(builder_sidecar_dir(builder), ignore_errors=True)
     # Fingerprinted before the build: what was there when it was read.
     layout = layout_fingerprint(_manual_dir(builder, manual_dir)) if real else None
     dl = tfds.download.DownloadConfig(manual_dir=None if manual_dir is None else str(manual_dir),
@@ -293,5 +292,5 @@ def prepare(builder, manual_dir: str | os.PathLike | None = None, *, beam_option
             return False
         builder.download_and_prepare(download_config=dl)
     if layout is not None:
-        _record(builder, layout)
+        _record(builder, layout=layout)
     return True
