@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -280,14 +281,21 @@ def _from_spec(spec: dict) -> TimeSchedule:
     raise ValueError(f"unknown schedule kind {kind!r} (expected 'regular' or 'dates')")
 
 
-def _generic() -> dict[str, TimeSchedule]:
-    hour, day = dt.timedelta(hours=1), dt.timedelta(days=1)
-    return {
-        # The three generic cases listed in Sec. III-A.
-        "hours_of_day": regular("hours_of_day", "day", hour, 24),
-        "days_of_year": regular("days_of_year", "year", day, 365),
-        "hours_of_year": regular("hours_of_year", "year", hour, 365 * 24),
-    }
+# The three generic cases listed in Sec. III-A: (cycle, step, number of timestamps).
+_GENERIC = {
+    "hours_of_day": ("day", dt.timedelta(hours=1), 24),
+    "days_of_year": ("year", dt.timedelta(days=1), 365),
+    "hours_of_year": ("year", dt.timedelta(hours=1), 365 * 24),
+}
+
+
+@functools.cache
+def _generic(name: str) -> TimeSchedule:
+    # Built once per process: a schedule is immutable, and labelling the 8,760 slots of
+    # hours_of_year takes about 50 ms, which callers asking for a preset often paid again
+    # and again (every preset() built all three).
+    cycle, step, num = _GENERIC[name]
+    return regular(name, cycle, step, num)
 
 
 def load_spec(name: str) -> dict:
@@ -306,9 +314,8 @@ PRESETS = ("hours_of_day", "days_of_year", "hours_of_year", "webcam_clipart", "c
 
 def preset(name: str) -> TimeSchedule:
     """A named schedule: a generic case of Sec. III-A or a paper setup from ``data_specs/``."""
-    generic = _generic()
-    if name in generic:
-        return generic[name]
+    if name in _GENERIC:
+        return _generic(name)
     if name not in PRESETS:
         raise ValueError(f"unknown schedule preset {name!r}; known: {', '.join(PRESETS)}")
     return _from_spec(load_spec(name)["schedule"])
