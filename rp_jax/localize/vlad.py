@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["learn_vocabulary", "rootsift", "vlad"]
+__all__ = ["kmeans_pp", "learn_vocabulary", "rootsift", "vlad"]
 
 
 def rootsift(descriptors: np.ndarray, eps: float = 1e-12) -> np.ndarray:
@@ -58,8 +58,43 @@ def learn_vocabulary(
     k = int(min(num_words, len(d)))
     from scipy.cluster.vq import kmeans2  # here: rp_jax.localize imports this module eagerly
 
-    centres, _ = kmeans2(d.astype(np.float64), k, minit="++", seed=rng)
+    data = d.astype(np.float64)
+    centres, _ = kmeans2(data, kmeans_pp(data, k, rng), minit="matrix")
     return centres.astype(np.float32)
+
+
+def kmeans_pp(data: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """k-means++ seeding (Arthur & Vassilvitskii, SODA 2007): the first centre uniformly,
+    each next one with probability proportional to the squared distance to its nearest
+    centre so far.
+
+    The same draws and the same centres as SciPy's ``kmeans2(..., minit="++")`` given the
+    same ``rng`` (a test checks it), at a k-th of its cost: SciPy measures every point
+    against all i centres chosen so far at each step i (k²/2 passes over the data: about
+    two thousand for a 64-word vocabulary), here each point's nearest squared distance is
+    kept and only the new centre measured (k passes).
+
+    Args:
+      data: [N, D] float64 points.
+      k: number of centres, 1 <= k <= N.
+      rng: the generator; consumed as SciPy consumes it (one integer, then one uniform
+        per further centre).
+
+    Returns:
+      [k, D] float64 initial centres.
+    """
+    from scipy.spatial.distance import cdist
+
+    init = np.empty((k, data.shape[1]), np.float64)
+    init[0] = data[rng.integers(data.shape[0])]
+    nearest = cdist(init[:1], data, metric="sqeuclidean")[0]
+    for i in range(1, k):
+        cumprobs = (nearest / nearest.sum()).cumsum()
+        init[i] = data[int(np.searchsorted(cumprobs, rng.uniform()))]
+        if i + 1 < k:
+            np.minimum(nearest, cdist(init[i:i + 1], data, metric="sqeuclidean")[0],
+                       out=nearest)
+    return init
 
 
 def vlad(descriptors: np.ndarray, vocabulary: np.ndarray, alpha: float = 0.5) -> np.ndarray:

@@ -32,6 +32,22 @@ def test_vlad_normalisation():
     assert not np.any(vlad(np.zeros((0, 8)), words))
 
 
+def test_vocabulary_is_scipys_kmeans_plus_plus():
+    """The incremental k-means++ seeding draws the centres SciPy's ``minit="++"`` draws, so
+    the vocabulary (and every map and run built on it) is SciPy's."""
+    from scipy.cluster.vq import kmeans2
+
+    rng = np.random.default_rng(3)
+    d = rootsift(rng.integers(0, 60, (3000, 128)))
+    for k, seed in ((1, 0), (16, 0), (64, 5)):
+        # learn_vocabulary's own path: its generator seeds the sample draw (none here) and
+        # then the initialisation.
+        expected, _ = kmeans2(d.astype(np.float64), k, minit="++",
+                              seed=np.random.default_rng(seed))
+        np.testing.assert_array_equal(learn_vocabulary(d, num_words=k, seed=seed),
+                                      expected.astype(np.float32))
+
+
 def _scene_images(rng, n_images=6, n_kp=150):
     """Images of disjoint 'places': each place has its own set of SIFT-like descriptors."""
     places = [rng.gamma(0.5, 20, (n_kp, 128)) for _ in range(n_images)]
