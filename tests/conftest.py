@@ -20,9 +20,13 @@ import os
 from tests import _session_cache
 
 _session_cache.configure_jax_cache()
-if os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "yes", "true"):
-    os.environ["XLA_FLAGS"] = " ".join(
-        [os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0"]).strip()
+_NO_OPT = "--xla_backend_optimization_level=0"
+# Added once: the xdist workers inherit the flags of the pytest process, which read this file
+# first. XLA_FLAGS as written is part of JAX's cache key, so a worker with the flag twice
+# never found the programs a serial run had compiled, nor a serial run the workers'.
+if (os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "yes", "true")
+        and _NO_OPT not in os.environ.get("XLA_FLAGS", "").split()):
+    os.environ["XLA_FLAGS"] = " ".join([os.environ.get("XLA_FLAGS", ""), _NO_OPT]).strip()
 os.environ.setdefault("RP_JAX_NO_CPU_SETUP", "1")  # entry points called in tests keep this set-up
 
 import chex  # noqa: E402
