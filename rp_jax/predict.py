@@ -412,7 +412,19 @@ def _load_shipped(name: str, batch_size: int) -> Predictor:
 
 
 def _abstract_params(config, T: int):
-    """Shapes and dtypes of the params ``config`` defines (nothing is computed)."""
-    net = model_lib.create_model(config, T)
-    d = time_encoding.num_features(config.model.time_fields)
-    return jax.eval_shape(lambda: model_lib.init_params(net, jax.random.key(0), d))
+    """Shapes and dtypes of the params ``config`` defines (nothing is computed).
+
+    Kept per process for each ``config.model`` and T: tracing the network's initialisation
+    takes about 40 ms, and a process that loads several predictors (the map summarization
+    loads its RP in each of its stages) paid it at every load.
+    """
+    key = (config.model.to_json(sort_keys=True), int(T))
+    if key not in _ABSTRACT_PARAMS:
+        net = model_lib.create_model(config, T)
+        d = time_encoding.num_features(config.model.time_fields)
+        _ABSTRACT_PARAMS[key] = jax.eval_shape(
+            lambda: model_lib.init_params(net, jax.random.key(0), d))
+    return _ABSTRACT_PARAMS[key]
+
+
+_ABSTRACT_PARAMS: dict[tuple[str, int], object] = {}  # _abstract_params' results (immutable)
