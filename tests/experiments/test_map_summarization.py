@@ -400,8 +400,11 @@ def test_rp_conditional_recipe_end_to_end_on_the_tiny_world(tiny_run, tmp_path):
     # is what is tested here; the fit is tested in tests/conditional.
     scorer = ConditionalScorer(net, init_params(net, jax.random.key(0)), place=(40.44, -79.99))
     predictors = {"robotcar": predict.load(workdir / "rp"), "conditional": scorer}
+    # The rows checked here and K-cover, which they are sized by (the default rows are the
+    # fixture's).
     out = mexp.evaluate_world(config, 0, predictors, tmp_path / "seed0", fingerprint="t",
-                              progress=False)
+                              progress=False,
+                              row_names=["kcover", "rp_conditional", "rp_conditional_kcover"])
     kept = out["kept_points"]
     for method in ("rp_conditional", "rp_conditional_kcover"):
         assert len(out["outcomes"][method]["0.5"]) == metrics["queries"]
@@ -432,7 +435,7 @@ def test_rp_conditional_with_the_query_images_own_conditions(tiny_run, tmp_path)
     scorer = ConditionalScorer(net, init_params(net, jax.random.key(0)), place=(40.44, -79.99))
     predictors = {"robotcar": predict.load(workdir / "rp"), "conditional": scorer}
     out = mexp.evaluate_world(config, 0, predictors, tmp_path / "seed0", fingerprint="t",
-                              progress=False)
+                              progress=False, row_names=["kcover", "rp_conditional_kcover"])
     n = metrics["queries"] + metrics["queries_without_pose"]
     assert out["conditional_summary_per_query"] is True
     assert out["query_conditions"] == {"conditions": ["sun", "weather", "appearance"],
