@@ -52,6 +52,9 @@ def tiny_run(tmp_path_factory):
         "--data-dir",
         str(data_dir),
         "--config.train.num_epochs=1",
+        # The CMU-trained RP (rp_cmu rows) for one epoch as well: its 3,300 tiny records
+        # for two epochs were a quarter of the fixture.
+        "--config.map.cmu_rp_epochs=1",
         f"--config.map.ratios=({','.join(RATIOS)})",
         # A query that fails runs every RANSAC iteration (27 ms at 5000): most of a test's
         # time on a pruned tiny map. 1000 keep the tests' checks (all structural) and cost
