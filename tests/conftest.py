@@ -7,10 +7,14 @@ JAX's persistent compilation cache (``tests/_session_cache.py``: the folder, per
 and why every program is kept) is configured first, before anything imports JAX.
 
 XLA compiles the suite's programs without its backend optimizations
-(``--xla_backend_optimization_level=0``): the tests' programs are small and run for a few
+(``--xla_backend_optimization_level=0``) and with its older fusion code generator
+(``--xla_cpu_use_fusion_emitters=false``): the tests' programs are small and run for a few
 steps, so compiling them is most of their time. On ``tests/test_train.py`` and
-``tests/test_predict.py`` with the cache off: 128.6 s of CPU with them, 93.2 s without, the
-same 72 passed; the whole suite passes with and without them (docs/testing.md).
+``tests/test_predict.py`` with the cache off: 128.6 s of CPU with the optimizations, 93.2 s
+without, the same 72 passed; on ``tests/test_model.py``, ``test_predict.py`` and
+``test_train.py`` (its learning test aside) without the optimizations, XLA's compile took
+50.5 and 55.4 s with the fusion emitters, 26.3 and 23.1 s without, and the run 101-110 s of
+CPU against 52-60 s. The whole suite passes either way (docs/testing.md).
 ``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do; the commands the tests start
 inherit the setting.
 """
@@ -20,13 +24,14 @@ import os
 from tests import _session_cache
 
 _session_cache.configure_jax_cache()
-_NO_OPT = "--xla_backend_optimization_level=0"
-# Added once: the xdist workers inherit the flags of the pytest process, which read this file
-# first. XLA_FLAGS as written is part of JAX's cache key, so a worker with the flag twice
+_QUICK_COMPILE = ("--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false")
+# Each added once: the xdist workers inherit the flags of the pytest process, which read this
+# file first. XLA_FLAGS as written is part of JAX's cache key, so a worker with a flag twice
 # never found the programs a serial run had compiled, nor a serial run the workers'.
-if (os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "yes", "true")
-        and _NO_OPT not in os.environ.get("XLA_FLAGS", "").split()):
-    os.environ["XLA_FLAGS"] = " ".join([os.environ.get("XLA_FLAGS", ""), _NO_OPT]).strip()
+if os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "yes", "true"):
+    _flags = os.environ.get("XLA_FLAGS", "").split()
+    os.environ["XLA_FLAGS"] = " ".join([*_flags, *(f for f in _QUICK_COMPILE
+                                                   if f not in _flags)])
 os.environ.setdefault("RP_JAX_NO_CPU_SETUP", "1")  # entry points called in tests keep this set-up
 
 import chex  # noqa: E402
