@@ -411,11 +411,14 @@ def _load_shipped(name: str, batch_size: int) -> Predictor:
     return Predictor(params, config, schedule, batch_size)
 
 
+_ABSTRACT_PARAMS: dict[tuple[str, int], object] = {}  # _abstract_params' results (immutable)
+
+
 def _abstract_params(config, T: int):
     """Shapes and dtypes of the params ``config`` defines (nothing is computed).
 
     Kept per process for each ``config.model`` and T: tracing the network's initialisation
-    takes about 40 ms, and a process that loads several predictors (the map summarization
+    takes 40-110 ms, and a process that loads several predictors (the map summarization
     loads its RP in each of its stages) paid it at every load.
     """
     key = (config.model.to_json(sort_keys=True), int(T))
@@ -425,6 +428,3 @@ def _abstract_params(config, T: int):
         _ABSTRACT_PARAMS[key] = jax.eval_shape(
             lambda: model_lib.init_params(net, jax.random.key(0), d))
     return _ABSTRACT_PARAMS[key]
-
-
-_ABSTRACT_PARAMS: dict[tuple[str, int], object] = {}  # _abstract_params' results (immutable)

@@ -69,10 +69,10 @@ def kmeans_pp(data: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
     centre so far.
 
     The same draws and the same centres as SciPy's ``kmeans2(..., minit="++")`` given the
-    same ``rng`` (a test checks it), at a k-th of its cost: SciPy measures every point
-    against all i centres chosen so far at each step i (k²/2 passes over the data: about
-    two thousand for a 64-word vocabulary), here each point's nearest squared distance is
-    kept and only the new centre measured (k passes).
+    same ``rng`` (a test checks it), in k passes over the data instead of about k²/2:
+    SciPy measures every point against all i centres chosen so far at each step i (about
+    two thousand passes for a 64-word vocabulary); here each point's nearest squared
+    distance is kept and only the new centre measured.
 
     Args:
       data: [N, D] float64 points.
