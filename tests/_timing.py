@@ -6,13 +6,14 @@ A pytest plugin, off unless asked for::
     python -m tests._timing /tmp/times     # the top twenty tests, files and fixtures
 
 Each process (every xdist worker) appends JSON lines to ``<dir>/<worker>.jsonl``: one per
-test phase (set-up, call, tear-down) and one per fixture set-up, each with its wall seconds
-and its CPU seconds (this process's, all threads, plus those of the child processes it
-waited for in the meantime). On a machine others share, wall time follows the load; CPU
-time much less so, which is why both are kept. Each row also has the seconds this process
-spent making JAX programs in the meantime (``jax.monitoring``'s duration events: tracing to
-a jaxpr, lowering to MLIR, XLA's backend compile; a program read from the compilation cache
-costs its tracing and lowering only); those of the commands a test starts are not seen.
+test phase (set-up, call, tear-down) and one per fixture set-up, each with its wall seconds,
+the time it ended (``end``, seconds since the epoch) and its CPU seconds (this process's,
+all threads, plus those of the child processes it waited for in the meantime). On a machine
+others share, wall time follows the load; CPU time much less so, which is why both are kept.
+Each row also has the seconds this process spent making JAX programs in the meantime
+(``jax.monitoring``'s duration events: tracing to a jaxpr, lowering to MLIR, XLA's backend
+compile; a program read from the compilation cache costs its tracing and lowering only);
+those of the commands a test starts are not seen.
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ def pytest_fixture_setup(fixturedef, request):
     yield
     _recorder.write(kind="fixture", name=fixturedef.argname, scope=fixturedef.scope,
                     file=request.node.nodeid.split("::")[0],
-                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, **_jax_since(jx))
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, end=time.time(),
+                    **_jax_since(jx))
 
 
 def _phase(item, when):
@@ -94,7 +96,8 @@ def _phase(item, when):
     yield
     _recorder.write(kind="test", name=item.nodeid, when=when,
                     file=item.nodeid.split("::")[0],
-                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, **_jax_since(jx))
+                    wall=time.perf_counter() - wall, cpu=_cpu() - cpu, end=time.time(),
+                    **_jax_since(jx))
 
 
 @pytest.hookimpl(hookwrapper=True)
