@@ -37,3 +37,31 @@ os.environ.setdefault("RP_JAX_NO_CPU_SETUP", "1")  # entry points called in test
 import chex  # noqa: E402
 
 chex.set_n_cpu_devices(2)
+
+import jax  # noqa: E402
+import pytest  # noqa: E402
+
+# What XLA compiles with when no flag is set (xla/debug_options_flags.cc: backend
+# optimization level 3, the fusion emitters on), as the commands compile.
+_AS_THE_COMMANDS_COMPILE = {"xla_backend_optimization_level": 3,
+                            "xla_cpu_use_fusion_emitters": True}
+
+
+@pytest.fixture
+def compile_as_the_commands_do(monkeypatch):
+    """``jax.jit`` compiles with XLA's own optimizations for the test that asks, the suite's
+    quick-compile flags notwithstanding (per program, through ``compiler_options``).
+
+    For a test that runs one program for many steps, where optimized code pays for its
+    slower compile: the learning test of ``tests/test_train.py`` (188 steps of the default
+    network). Asked by every test of that file and a few others, it made them slower: their
+    programs run for a few steps (experiments/results/suite_times.md).
+    """
+    jit = jax.jit
+
+    def optimized_jit(*args, **kwargs):
+        kwargs["compiler_options"] = {**_AS_THE_COMMANDS_COMPILE,
+                                      **(kwargs.get("compiler_options") or {})}
+        return jit(*args, **kwargs)
+
+    monkeypatch.setattr(jax, "jit", optimized_jit)

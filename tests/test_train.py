@@ -67,7 +67,7 @@ def test_train_step_compiles_once():
     assert int(state.step) == 3
 
 
-def test_learns_the_task_far_below_the_per_slot_mean(tmp_path):
+def test_learns_the_task_far_below_the_per_slot_mean(tmp_path, compile_as_the_commands_do):
     config = default.get_config()
     config.train.num_epochs = 8
     config.input.batch_size = 128
