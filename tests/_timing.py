@@ -115,10 +115,16 @@ def pytest_runtest_teardown(item):
     yield from _phase(item, "teardown")
 
 
+def _read(folder: Path) -> dict[str, list[dict]]:
+    """{process (file stem): its rows}."""
+    return {f.stem: [json.loads(line) for line in f.read_text().splitlines() if line]
+            for f in sorted(folder.glob("*.jsonl"))}
+
+
 def summary(folder: Path, top: int = 20) -> str:
     """The ``top`` tests, files and fixtures by wall time, with their CPU time."""
-    rows = [json.loads(line) for f in sorted(folder.glob("*.jsonl"))
-            for line in f.read_text().splitlines() if line]
+    by_process = _read(folder)
+    rows = [r for process_rows in by_process.values() for r in process_rows]
     tests: dict = collections.defaultdict(lambda: [0.0, 0.0])
     files: dict = collections.defaultdict(lambda: [0.0, 0.0])
     fixtures: dict = collections.defaultdict(lambda: [0.0, 0.0, 0])
@@ -145,6 +151,14 @@ def summary(folder: Path, top: int = 20) -> str:
         for key, v in sorted(table.items(), key=lambda kv: -kv[1][0])[:top]:
             extra = f" x{v[2]}" if len(v) > 2 and v[2] > 1 else ""
             out.append(f"{v[0]:8.1f} {v[1]:8.1f}  {key}{extra}")
+    spans = _process_spans(by_process)
+    if spans:
+        last = max(end for _, end in spans.values())
+        out.append("\nTest phases of each process, seconds from the first one's start "
+                   "(idle at the end: before the last process finished)")
+        for process, (start, end) in spans.items():
+            out.append(f"{start:8.1f} {end:8.1f}  {process} (idle at the end: "
+                       f"{last - end:.1f})")
     totals = {k: sum(v[k] for v in jax_by_test.values()) for k in _EVENTS.values()}
     out.append("\nJAX programs made in the test processes (trace + lower + XLA compile, s): "
                + ", ".join(f"{k} {v:.1f}" for k, v in totals.items()))
@@ -152,6 +166,21 @@ def summary(folder: Path, top: int = 20) -> str:
     for key, v in sorted(jax_by_test.items(), key=lambda kv: -sum(kv[1].values()))[:top]:
         out.append(f"{v['trace']:8.1f} {v['lower']:8.1f} {v['compile']:8.1f}  {key}")
     return "\n".join(out)
+
+
+def _process_spans(by_process: dict) -> dict:
+    """{process: (first test phase's start, last one's end)}, seconds from the earliest
+    start of any process; the processes whose rows say when they ended (``end``)."""
+    spans = {}
+    for process, rows in by_process.items():
+        timed = [(r["end"] - r["wall"], r["end"]) for r in rows
+                 if r["kind"] == "test" and "end" in r]
+        if timed:
+            spans[process] = (min(s for s, _ in timed), max(e for _, e in timed))
+    if not spans:
+        return {}
+    t0 = min(s for s, _ in spans.values())
+    return {p: (s - t0, e - t0) for p, (s, e) in spans.items()}
 
 
 if __name__ == "__main__":

@@ -42,3 +42,29 @@ def test_the_listener_adds_only_the_compile_events():
     _timing._on_duration("/jax/core/compile/backend_compile_duration", 1.5)
     _timing._on_duration("/jax/some/other_duration", 7.0)
     assert _timing._jax_since(before) == {"trace": 0.0, "lower": 0.0, "compile": 1.5}
+
+
+def test_each_process_span_and_its_idle_end(tmp_path):
+    folder = tmp_path / "times"
+    folder.mkdir()
+    rows = {"gw0-1": [(100.0, 2.0), (110.0, 5.0)], "gw1-2": [(101.0, 1.0), (130.0, 4.0)]}
+    for process, phases in rows.items():
+        with open(folder / f"{process}.jsonl", "w") as f:
+            for end, wall in phases:
+                f.write(json.dumps({"kind": "test", "name": "t::x", "when": "call",
+                                    "file": "t", "wall": wall, "cpu": wall, "end": end}) + "\n")
+            # A fixture row is not a test phase: its end does not count.
+            f.write(json.dumps({"kind": "fixture", "name": "f", "scope": "module", "file": "t",
+                                "wall": 1.0, "cpu": 1.0, "end": 500.0}) + "\n")
+    # gw0 starts first (at 98), ends at 110; gw1 ends at 130, 20 s after gw0.
+    assert _timing._process_spans(_timing._read(folder)) == {"gw0-1": (0.0, 12.0),
+                                                              "gw1-2": (2.0, 32.0)}
+    text = _timing.summary(folder)
+    assert "     0.0     12.0  gw0-1 (idle at the end: 20.0)" in text
+    assert "     2.0     32.0  gw1-2 (idle at the end: 0.0)" in text
+    # Rows of a run before the end times: no such section.
+    (folder / "gw0-1.jsonl").unlink()
+    (folder / "gw1-2.jsonl").write_text(json.dumps(
+        {"kind": "test", "name": "t::x", "when": "call", "file": "t", "wall": 1.0,
+         "cpu": 1.0}) + "\n")
+    assert "idle at the end" not in _timing.summary(folder)
