@@ -643,10 +643,10 @@ def suite_times_table(data: Mapping | None) -> str:
               f"spent {sum(jax.values()):.0f} s of their {prof['user_s']:.0f} s of CPU making "
               f"JAX programs (tracing {jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, "
               f"XLA's compile {jax['compile']:.0f} s; the timing plugin below).", "",
-              f"Measured on {data['date']}; {data['machine']}; {data['what']}."]
+              f"Measured on {data['machine']}; {data['what']}."]
     for other in data.get("other_machines", ()):  # the same pair on another CPU kind
         rows, shares = table(other["runs"])
-        lines += ["", f"On {other['machine']} ({other['date']}; {other['what']}):", "", *rows,
+        lines += ["", f"On {other['machine']} ({other['what']}):", "", *rows,
                   "", f"Pytest wall against the suite before: {shares}."]
     return "\n".join(lines) + "\n"
 

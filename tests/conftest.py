@@ -55,7 +55,10 @@ def compile_as_the_commands_do(monkeypatch):
     For a test that runs one program for many steps, where optimized code pays for its
     slower compile: the learning test of ``tests/test_train.py`` (188 steps of the default
     network). Asked by every test of that file and a few others, it made them slower: their
-    programs run for a few steps (experiments/results/suite_times.md).
+    programs run for a few steps (experiments/results/suite_times.md). JAX refuses compiler
+    options on a ``jax.jit`` reached inside another trace, so a test that loads a predictor
+    (``predict.load`` takes the parameters' shapes from ``jax.eval_shape`` of the jitted
+    initialisation) cannot ask for it.
     """
     jit = jax.jit
 

@@ -344,7 +344,8 @@ def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
     assert "| now | 9 passed | 300 s | 304 s | 600 s |" in text
     assert "Pytest wall against the suite before: now 75 %." in text
     assert "spent 100 s of their 500 s of CPU making JAX programs" in text
-    assert "Measured on 2030-01-01; AMD EPYC; fresh clones." in text
+    assert "Measured on AMD EPYC; fresh clones." in text
+    assert "2030" not in text  # the measurement's date stays in the record
     assert "On " not in text  # one machine only
     intel = [dict(r, pytest_s=2 * r["pytest_s"]) for r in runs[:1]] + [
         dict(runs[1], pytest_s=700.0, make_test_s=710.0, user_s=1400.0)]
@@ -354,7 +355,7 @@ def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
                     "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
         "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
                             "runs": intel}]})
-    assert "On an Intel Xeon (2030-01-02; again):" in text
+    assert "On an Intel Xeon (again):" in text and "2030" not in text
     assert "| now | 9 passed | 700 s | 710 s | 1400 s |" in text
     assert "Pytest wall against the suite before: now 88 %." in text  # 700 / 800
     assert "No suite timing" in docs_tables.suite_times_table(None)
