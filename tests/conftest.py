@@ -16,7 +16,8 @@ without, the same 72 passed; on ``tests/test_model.py``, ``test_predict.py`` and
 50.5 and 55.4 s with the fusion emitters, 26.3 and 23.1 s without, and the run 101-110 s of
 CPU against 52-60 s. The whole suite passes either way (docs/testing.md).
 ``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do; the commands the tests start
-inherit the setting.
+inherit the setting. A test that runs one program for many steps asks for the
+``compile_as_the_commands_do`` fixture instead (below).
 """
 
 import os
