@@ -418,8 +418,9 @@ def _abstract_params(config, T: int):
     """Shapes and dtypes of the params ``config`` defines (nothing is computed).
 
     Kept per process for each ``config.model`` and T: tracing the network's initialisation
-    takes 40-110 ms, and a process that loads several predictors (the map summarization
-    loads its RP in each of its stages) paid it at every load.
+    takes about 30-90 ms (the first in a process the most), and a process that loads
+    several predictors (the map summarization loads its RP in each of its stages) paid it
+    at every load.
     """
     key = (config.model.to_json(sort_keys=True), int(T))
     if key not in _ABSTRACT_PARAMS:

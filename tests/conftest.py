@@ -25,7 +25,13 @@ import os
 from tests import _session_cache
 
 _session_cache.configure_jax_cache()
-_QUICK_COMPILE = ("--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false")
+# Each XLA option the suite sets: (the suite's quick-compile value, XLA's own default, what
+# the commands compile with: xla/debug_options_flags.cc). The flags and the fixture
+# ``compile_as_the_commands_do`` below are both made from this one table.
+_COMPILE_OPTIONS = {"xla_backend_optimization_level": (0, 3),
+                    "xla_cpu_use_fusion_emitters": (False, True)}
+_QUICK_COMPILE = tuple(f"--{name}={str(quick).lower()}"
+                       for name, (quick, _) in _COMPILE_OPTIONS.items())
 # Each added once: the xdist workers inherit the flags of the pytest process, which read this
 # file first. XLA_FLAGS as written is part of JAX's cache key, so a worker with a flag twice
 # never found the programs a serial run had compiled, nor a serial run the workers'.
@@ -42,10 +48,7 @@ chex.set_n_cpu_devices(2)
 import jax  # noqa: E402
 import pytest  # noqa: E402
 
-# What XLA compiles with when no flag is set (xla/debug_options_flags.cc: backend
-# optimization level 3, the fusion emitters on), as the commands compile.
-_AS_THE_COMMANDS_COMPILE = {"xla_backend_optimization_level": 3,
-                            "xla_cpu_use_fusion_emitters": True}
+_AS_THE_COMMANDS_COMPILE = {name: default for name, (_, default) in _COMPILE_OPTIONS.items()}
 
 
 @pytest.fixture
