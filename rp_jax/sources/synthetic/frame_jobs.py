@@ -16,6 +16,7 @@ import datetime as dt
 import logging
 import math
 import time
+import zoneinfo
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -100,6 +101,8 @@ class FrameJob:
       exposure_limit_s: where the camera's auto-exposure stops
         (``camera_effects.with_exposure_limit``); None: at the sensor's longest exposure.
       vehicle: the camera's own car, ``(x, y, heading)`` (``render.render``), or None.
+      clock: the time zone of the place's clocks (IANA name), for what people do by the
+        clock (``render.render``'s ``clock``); None: ``when``'s own.
     """
 
     scene: SceneSpec
@@ -122,6 +125,7 @@ class FrameJob:
     sensor_noise: float = 1.0
     exposure_limit_s: float | None = None
     vehicle: tuple[float, float, float] | None = None
+    clock: str | None = None
 
     @property
     def outputs(self) -> list[Path]:
@@ -185,6 +189,7 @@ def render_frame(job: FrameJob):
         sensor=sensor,
         velocity=None if job.velocity is None else np.asarray(job.velocity, np.float64),
         vehicle=job.vehicle,
+        clock=None if job.clock is None else zoneinfo.ZoneInfo(job.clock),
     )
 
 

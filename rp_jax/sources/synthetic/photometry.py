@@ -19,7 +19,9 @@ candelas and converts them to those units:
   urban ecosystems", PLoS ONE 2011).
 - **Lit windows**: a lit room seen through its glass has a luminance of tens of cd/m² (an
   interior lit at 300-500 lux, the range of EN 12464-1 for offices and homes, with walls of
-  albedo 0.3-0.5); ``window_cd_m2`` is that luminance.
+  albedo 0.3-0.5); ``window_cd_m2`` is that luminance. Which windows are lit follows the
+  household lighting profile of the Building America House Simulation Protocols by the
+  local hour and month (``household_profile``, ``household_lighting``).
 
 - **Headlamps** (``vehicle_lights``): every moving car, the camera's own included, lights the
   street ahead with two dipped headlamps, each a point source whose intensity depends on the
@@ -72,6 +74,9 @@ class StreetLighting:
       vehicle_lights: moving cars, the camera's own included, light the street with their
         dipped headlamps while the street lamps are on (``low_beam_cd``).
       wet_reflections: a wet road mirrors the lamps and headlamps (``wet_road_specular``).
+      household_profile: the share of windows lit follows a published household lighting
+        profile by the hour and month (``household_lighting``); otherwise the step
+        function of ``conditions.conditions_at``.
     """
 
     name: str
@@ -81,6 +86,7 @@ class StreetLighting:
     window_cd_m2: float
     vehicle_lights: bool = False
     wet_reflections: bool = False
+    household_profile: bool = False
 
     @property
     def lamp_power(self) -> float:
@@ -117,6 +123,7 @@ EN_13201 = StreetLighting(
     window_cd_m2=50.0,
     vehicle_lights=True,
     wet_reflections=True,
+    household_profile=True,
 )
 _BY_NAME = {s.name: s for s in (LEGACY, EN_13201)}
 

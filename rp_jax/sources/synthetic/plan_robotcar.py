@@ -54,11 +54,15 @@ __all__ = [
     "plan",
     "plan_day",
     "robotcar_traversals",
+    "OXFORD_CLOCK",
 ]
 
 log = logging.getLogger(__name__)
 
 _SPEC = load_spec("robotcar")
+# Oxford's clocks (the layout's spec), which its people keep: which windows are lit by the
+# hour (``render.render``'s ``clock``).
+OXFORD_CLOCK = _SPEC["timezone"]
 
 
 def robotcar_traversals() -> list[tuple[str, int]]:
@@ -118,7 +122,7 @@ def day_traversals(hours=tuple(range(24))) -> list[tuple[str, int]]:
     Table I mixes months. Folder names are the UTC start, as RobotCar names them."""
     from zoneinfo import ZoneInfo
 
-    tz = ZoneInfo(load_spec("robotcar_day")["timezone"])
+    tz = ZoneInfo(OXFORD_CLOCK)
     out = []
     for h in hours:
         local = dt.datetime(2015, 1 + (5 * h) % 12, 15, h, 0, tzinfo=tz) - dt.timedelta(
@@ -225,6 +229,7 @@ def _plan(out_dir: Path, spec: _RobotcarSize, traversals: list[tuple[str, int]],
                                    speed * math.sin(pose.heading), 0.0)),
                         vehicle=(float(pose.position[0]), float(pose.position[1]),
                                  float(pose.heading)),
+                        clock=OXFORD_CLOCK,
                     )
                 )
         # INS at 10 Hz over the whole drive.

@@ -60,7 +60,11 @@ from rp_jax.sources.synthetic.frame_jobs import (
     segmentation_path_of,
 )
 from rp_jax.sources.synthetic.plan_cmu import build_reference_model
-from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_CAMERA_HEIGHT_M, oxford_street
+from rp_jax.sources.synthetic.plan_robotcar import (
+    OXFORD_CLOCK,
+    ROBOTCAR_CAMERA_HEIGHT_M,
+    oxford_street,
+)
 from rp_jax.sources.synthetic.route import CameraMount, Route, camera_pose
 
 __all__ = ["CONDITION_WEATHER", "MOUNTS", "REAL_CAMERA", "V2_QUERIES", "plan"]
@@ -166,6 +170,7 @@ def plan(out_dir: Path, size: str, seed: int) -> Plan:
                     velocity=velocity,
                     vehicle=(float(vehicle.position[0]), float(vehicle.position[1]),
                              float(vehicle.heading)),
+                    clock=OXFORD_CLOCK,
                 )
                 jobs.append(job)
                 if is_reference:

@@ -137,7 +137,11 @@ WORLD_VERSION = 4
 # 8: robotcar (the paper's Table I traversals) in Oxford's own climate too: the latitude's
 #    laid snow on four of its nine traversals (February 13, March 17, November 18 and 28:
 #    the 9:00, 11:00, 12:00 and 13:00 slots), none of them snowy in Oxford's.
-_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 6, "robotcar_day": 6, "webcam_clipart": 7,
+# 9: robotcar_seasons and robotcar_day light their windows by a published household
+#    lighting profile on Oxford's clock (``household_lighting``; a step function of the
+#    hour before): several times more lit windows at dawn, dusk and on the snow morning
+#    (the sun below 8 degrees), about as many at night.
+_PRESET_WORLD_VERSIONS = {"robotcar_seasons": 9, "robotcar_day": 9, "webcam_clipart": 7,
                           "webcam_worlds": 7, "webcam_worlds_unseen": 7, "robotcar": 8}
 
 

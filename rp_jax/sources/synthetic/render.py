@@ -34,7 +34,14 @@ import cv2
 import numpy as np
 
 from rp_jax import categories
-from rp_jax.sources.synthetic import camera_effects, night_lights, photometry, sky, traffic
+from rp_jax.sources.synthetic import (
+    camera_effects,
+    household_lighting,
+    night_lights,
+    photometry,
+    sky,
+    traffic,
+)
 from rp_jax.sources.synthetic import conditions as condlib
 from rp_jax.sources.synthetic.plane_warp import NEAR, poly_region, warp
 from rp_jax.sources.synthetic.quads import Material, QuadSet, TextureState
@@ -412,6 +419,16 @@ def _window_threshold(
     return (255.0 - 127.0 * p).astype(np.float32)
 
 
+def _lit_window_share(scene: Scene, when: dt.datetime, cond: condlib.Conditions,
+                      lighting: photometry.StreetLighting, clock: dt.tzinfo | None) -> float:
+    """The share of the street's windows lit at ``when``: the household lighting profile on
+    the place's clock where the lighting follows it, else the conditions' step function."""
+    if not lighting.household_profile:
+        return cond.window_lit_prob
+    local = when if clock is None else when.astimezone(clock)
+    return household_lighting.lit_window_share(local, scene.latitude, scene.longitude)
+
+
 def _vehicle_lights(scene: Scene, when: dt.datetime, vehicle, C: np.ndarray,
                     lighting: photometry.StreetLighting) -> tuple[np.ndarray, np.ndarray]:
     """The headlamps lighting the street near the camera at ``when`` (positions, forwards):
@@ -460,6 +477,7 @@ def render(
     sensor: camera_effects.Sensor = camera_effects.WEBCAM,
     velocity: np.ndarray | None = None,
     vehicle: tuple[float, float, float] | None = None,
+    clock: dt.tzinfo | None = None,
 ) -> Frame:
     """Renders the world as a camera records it at an instant.
 
@@ -479,6 +497,9 @@ def render(
       vehicle: the camera's own car, ``(x, y, heading)`` of its centre (heading in radians
         from +x), whose headlamps light the street where ``lighting.vehicle_lights``; None:
         the camera is not on a car.
+      clock: the time zone of the place's clocks, which the people living there follow
+        (the windows lit by ``household_lighting`` where ``lighting.household_profile``);
+        None: ``when``'s own.
 
     Returns:
       ``Frame`` with rgb, depth, category and meta.
@@ -569,7 +590,7 @@ def render(
                 scene.seed,
                 when.date().toordinal(),
                 cond.local_hour,
-                cond.window_lit_prob,
+                _lit_window_share(scene, when, cond, lighting, clock),
             )
             lit = fac & (aux >= np.take(thr, np.take(owners, qid)))
             emis_ss[lit] = 0.04 + 0.08 * (aux[lit] - 128) / 127.0

@@ -35,6 +35,9 @@ def test_the_day_preset_takes_nights_as_the_seasons_preset_does(tmp_path):
     day = presets.plan("robotcar_day", tmp_path / "d", size="tiny", seed=0)
     paper = presets.plan("robotcar", tmp_path / "p", size="tiny", seed=0)
     assert {j.lighting for j in day.jobs} == {photometry.EN_13201.name}
+    # Its windows are lit by the hour on Oxford's clock, as the seasons preset's are.
+    seasons = presets.plan("robotcar_seasons", tmp_path / "s", size="tiny", seed=0)
+    assert {j.clock for j in day.jobs} == {j.clock for j in seasons.jobs} == {"Europe/London"}
     assert {j.sensor for j in day.jobs} == {camera_effects.BUMBLEBEE_XB3_16HZ.name}
     assert all(j.velocity is not None and np.hypot(*j.velocity[:2]) > 5 for j in day.jobs)
     # Another street than the paper's preset of the same seed; that preset is unchanged.
