@@ -16,9 +16,10 @@ the end of the half hour, ``m`` the month, ``s_m`` the protocol's seasonal multi
 - from 15:00 to 23:00, the evening peak, a normal curve 2.45 hours after sunset whose width
   grows towards midsummer, ``L(t) = L(14.5) + a_1 N(t; sunset + 2.45, 1.587 w_m)`` with
   ``w_m = 25.5 / (|6.5 - m| + 20)``;
-- from 23:30, the late evening ``0.04 + a_2 N(t; 20.15, 2.366)``; the half hours of 23:00
-  and 23:30 take the lesser of the two curves where the evening peak comes later than
-  20.15 h, the greater otherwise.
+- from 23:30, the late evening ``0.04 + a_2 N(t; 20.15, 2.366)``; the half hour ending at
+  23:00 takes the lesser of the two curves where the evening peak comes later than 20.15 h,
+  the greater otherwise (as the protocol's implementation in NREL's OpenStudio residential
+  lighting measure does).
 
 The protocol's curve is the lighting's energy; here, each lit room drawing about the same
 power, it is read as the share of rooms lit, scaled so that the year's highest half hour at
@@ -84,7 +85,7 @@ def half_hour_profile(month: int, sunset: float) -> np.ndarray:
             late = 0.04 + area2 * _normal(t, mu2, sd2)
             if k < 45:
                 L[k] = evening
-            elif k < 47:
+            elif k == 45:
                 L[k] = min(evening, late) if mu2 < sunset + lag1 else max(evening, late)
             else:
                 L[k] = late
