@@ -65,6 +65,9 @@ class Conditions:
     zenith_rgb: np.ndarray  # (3,) sky radiance at the zenith
     horizon_rgb: np.ndarray  # (3,) sky radiance at the horizon
     lamps_on: bool
+    # The share of windows lit: a step function of the hour on ``when``'s clock, assumed,
+    # not from a source; the worlds lit in physical units use ``household_lighting``'s
+    # published profile instead (``photometry.StreetLighting.household_profile``).
     window_lit_prob: float
     cloud_offset: np.ndarray  # (2,) metres of cloud drift (wind x time)
     wind_speed: float  # m/s, the day's wind (drifts clouds, moves foliage)
