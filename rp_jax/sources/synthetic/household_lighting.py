@@ -63,7 +63,7 @@ def _normal(t: float, mu: float, sigma: float) -> float:
 def half_hour_profile(month: int, sunset: float) -> np.ndarray:
     """The protocol's lighting over the 48 half hours of a day of ``month`` (1-12) with the
     sun setting at ``sunset`` (local hours): element ``k`` is the half hour ending at
-    ``(k + 1) / 2`` hours, in the protocol's units (kWh a half hour of its reference home)."""
+    ``(k + 1) / 2`` hours, in the protocol's relative units (only ratios are used here)."""
     if not 1 <= month <= 12:
         raise ValueError(f"month must be 1..12, got {month}")
     s = _SEASONAL[month - 1]
