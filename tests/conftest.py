@@ -25,8 +25,8 @@ import os
 from tests import _session_cache
 
 _session_cache.configure_jax_cache()
-# Each XLA option the suite sets: (the suite's quick-compile value, XLA's own default, what
-# the commands compile with: xla/debug_options_flags.cc). The flags and the fixture
+# Each XLA option the suite sets: (the suite's quick-compile value, XLA's own default, which
+# the commands compile with; xla/debug_options_flags.cc). The flags and the fixture
 # ``compile_as_the_commands_do`` below are both made from this one table.
 _COMPILE_OPTIONS = {"xla_backend_optimization_level": (0, 3),
                     "xla_cpu_use_fusion_emitters": (False, True)}
