@@ -32,9 +32,9 @@ intensity under a night sky of about 0.1 lux, lit windows of tens of cd/m²
 (``camera_effects.GRASSHOPPER2_11HZ``): its exposure lengthens up to one frame period, with
 the motion blur of the moving car, then its gain rises with the noise. The car's own and
 the passing cars' dipped headlamps light the street (UN ECE R112's passing beam), and in
-night-rain the wet road mirrors the lamps and headlamps (``night_lights``). Not modelled:
-lamp types by street class, and which windows are lit by the hour beyond a step function
-of the local time (``conditions.conditions_at``).
+night-rain the wet road mirrors the lamps and headlamps (``night_lights``); the share of
+windows lit follows a published household lighting profile on Oxford's clock
+(``household_lighting``). Not modelled: lamp types by street class.
 """
 
 from __future__ import annotations
