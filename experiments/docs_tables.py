@@ -523,8 +523,8 @@ def scorer_validation_table(results: Sequence[tuple[str, Mapping]],
     code = (first.get("provenance") or {}).get("code")
     older = [f"`{name}`" for _, name, _, _, _, r in rows[1:]
              if (r.get("provenance") or {}).get("code") != code]
-    others = (f" Made with other code than the first row (so with other point features or "
-              f"another RobotCar RP among them; each file's `provenance` says which): "
+    others = (f" Made with other code than the first row (which may have read other point "
+              f"features or another RobotCar RP; each file's `provenance` says which): "
               f"{', '.join(older)}." if older else "")
     return ("\n".join(lines) + f"\n\nInlier AUC on the labels of slice {first['slice']} of "
             f"world seeds {first['seeds']} ({first['validation']['pairs']:,} pairs of "
