@@ -10,9 +10,10 @@ candelas and converts them to those units:
   value of ``EN_13201`` is the isotropic equivalent of a 70 W high-pressure sodium lantern
   (about 6,600 lm, the lamp type that lit British residential streets until the LED
   retrofits) with three quarters of its flux sent into the lower half-space: about
-  790 cd, 20 lux on the road under a 6.25 m head and a few lux between two heads 25-30 m
-  apart, the range of the lighting classes P2-P4 of EN 13201-2 (average 5-10 lux on
-  residential roads). Its colour is that of high-pressure sodium (about 2,100 K).
+  790 cd, 20 lux on the road under a 6.25 m head and a few lux between two heads 22-32 m
+  apart: on the street of the worlds that use it, class P4 of EN 13201-2 (an average of
+  at least 5 lux and nowhere under 1 lux on the carriageway; ``road_lighting`` computes
+  it on EN 13201-3's grid). Its colour is that of high-pressure sodium (about 2,100 K).
 - **The night sky**: the light on a surface from the moonless urban sky, of the order of
   0.1 lux (the full moon gives 0.1-0.3 lux; cloud over a city reflects its lights back,
   Kyba et al., "Cloud coverage acts as an amplifier for ecological light pollution in

@@ -34,7 +34,9 @@ the motion blur of the moving car, then its gain rises with the noise. The car's
 the passing cars' dipped headlamps light the street (UN ECE R112's passing beam), and in
 night-rain the wet road mirrors the lamps and headlamps (``night_lights``); the share of
 windows lit follows a published household lighting profile on Oxford's clock
-(``household_lighting``). Not modelled: lamp types by street class.
+(``household_lighting``). The street is one class, a residential street, whose lamps
+light its carriageway to class P4 of EN 13201-2 (``road_lighting``); a main road's taller
+columns and M-class lighting are not modelled.
 """
 
 from __future__ import annotations
