@@ -124,7 +124,8 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     condition) pairs, two night conditions each), ``map.conditions`` (the query conditions;
     empty = every one the layout has), ``map.root`` (a RobotCar-Seasons-like layout to
     use instead of the synthetic world), ``map.outcome_seeds`` (the outcome scorer's label
-    worlds, disjoint from ``map.seeds``) and ``map.outcome_batch_size``."""
+    worlds, disjoint from ``map.seeds``), ``map.outcome_batch_size`` and
+    ``map.mapped_lamps``."""
     config = mapsum_config(size)
     m = config.map
     m.seeds = (0,) if size == "tiny" else (0, 1, 2, 3, 4)
@@ -133,6 +134,11 @@ def get_config(size: str = "small") -> ml_collections.ConfigDict:
     m.outcome_seeds = (1,) if size == "tiny" else (5, 6, 7, 8, 9)
     # A tiny label world has a few hundred pairs (27 queries): small batches.
     m.outcome_batch_size = 128 if size == "tiny" else 4096
+    # The outcome scorers also read how much of the street lamps' light reaches a point
+    # (``rp_jax.mapsum.outcome_scorer.mapped_lamp_light``), from the lamps' positions as a
+    # lamp inventory gives them (``street_lamps``: the synthetic world's own; a given layout
+    # has none). Off by default: the committed runs are without it.
+    m.mapped_lamps = False
     return config
 
 
@@ -158,6 +164,10 @@ def validate(config: ml_collections.ConfigDict) -> None:
            "outcome_batch_size", "a positive integer (training pairs per step)")
     expect(isinstance(m.processes, int) and m.processes >= 1, "processes",
            "a whole number >= 1 (world seeds and label worlds at once)")
+    expect(isinstance(m.mapped_lamps, bool), "mapped_lamps", "True or False")
+    expect(not (m.mapped_lamps and m.root), "mapped_lamps",
+           "False with config.map.root (a given layout has no lamp positions, and no outcome "
+           "rows)")
     if not m.root:
         layout_outcomes.label_seeds(config)  # disjoint from the evaluated seeds
 
@@ -229,11 +239,29 @@ def capture_time(path: Path, name: str):
     return rcs.capture_time(parsed[2])
 
 
+def street_lamps(config, seed: int) -> np.ndarray:
+    """(L, 3) the street lamps' heads of synthetic world ``seed`` in its map's frame: what a
+    lamp inventory (OpenStreetMap's ``highway=street_lamp`` nodes, a council's register)
+    gives a real map. A counterfactual copy of the world has the same street."""
+    from rp_jax.sources.synthetic import frame_jobs
+
+    if config.map.root:
+        raise ValueError(f"config.map.root={config.map.root!r}: a given layout has no lamp "
+                         "positions (config.map.mapped_lamps needs the synthetic world)")
+    job = presets.plan("robotcar_seasons", _root(config, seed),
+                       size=config.map.synthetic_size, seed=seed).jobs[0]
+    return np.asarray(frame_jobs.scene_of(job.scene).lamps, np.float64)
+
+
 def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *,
               progress: bool = True) -> WorldMap:
-    """Stage 2: the reference traversal's model and images (``world.build_map_from``)."""
-    return build_map_from(config, root, root / REFERENCE_MODEL_DIR, root / "images",
-                          predictors, seed, capture_time=capture_time, progress=progress)
+    """Stage 2: the reference traversal's model and images (``world.build_map_from``), with
+    the street lamps (``street_lamps``) where ``config.map.mapped_lamps``."""
+    world = build_map_from(config, root, root / REFERENCE_MODEL_DIR, root / "images",
+                           predictors, seed, capture_time=capture_time, progress=progress)
+    if config.map.get("mapped_lamps"):
+        world = dataclasses.replace(world, lamps=street_lamps(config, seed))
+    return world
 
 
 def query_conditions(config, root: Path) -> list[str]:
@@ -370,6 +398,8 @@ def _fingerprint(config, scorers=None, rp=None) -> str:
     import jax
 
     settings = seed_processes.outcome_settings(config.map.to_dict())
+    if not settings.get("mapped_lamps"):  # seeds evaluated before the field are found again
+        settings.pop("mapped_lamps", None)
     settings.update(layout=ROBOTCAR_SEASONS.name, rows=list(rows_of(config)),
                     result_version=RESULT_VERSION,
                     world=presets.world_version("robotcar_seasons"))

@@ -69,6 +69,8 @@ def _fingerprint(config, layout: Layout) -> str:
     settings = {k: config.map.get(k) for k in outcome_labels.LABEL_SETTINGS}
     settings.update(layout=layout.name, world=presets.world_version(layout.name), format=1,
                     features=int(FEATURE_VERSION))
+    if config.map.get("mapped_lamps"):  # only then: earlier label files keep their key
+        settings["mapped_lamps"] = True
     text = json.dumps(settings, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -136,9 +138,15 @@ def world_outcomes(config, layout: Layout, seed: int, out_dir: Path, *,
         [q["time"].isoformat(timespec="seconds") for q in queries],
         group=f"{layout.name}/seed{seed}")
     obs = world.observations
+    lamps = None
+    if config.map.get("mapped_lamps"):
+        if world.lamps is None:
+            raise ValueError(f"{root}: config.map.mapped_lamps is set and the {layout.name} "
+                             "layout gives no street lamps for its map")
+        lamps = world.lamps
     point_table = outcome_labels.map_point_table(
         config, world.reconstruction, world.map_points, obs.descriptors, world.point_rep,
-        world.point_descriptors, world.point_categories, obs.keypoint)
+        world.point_descriptors, world.point_categories, obs.keypoint, lamps=lamps)
     query_table = outcome_labels.query_table([q["time"] for q in queries],
                                              [q["image_path"] for q in queries], place)
     labels.save(path, point_table=point_table, query_table=query_table,
@@ -176,4 +184,5 @@ def train_layout_scorers(config, layout: Layout, workdir: Path, *,
     return outcome_scorer.fit_scorers(
         settings, outcome_scorer.stack_groups(parts),
         [f"{layout.name}/seed{s}" for s in seeds], workdir / f"outcome_scorer_{layout.name}",
-        _fingerprint(config, layout), place=place, progress=progress)
+        _fingerprint(config, layout), place=place,
+        lamps=bool(config.map.get("mapped_lamps", False)), progress=progress)

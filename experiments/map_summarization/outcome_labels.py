@@ -94,7 +94,8 @@ def training_slices(config, seed: int = 0) -> list[int]:
 
 def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
                     point_rep: Mapping[str, np.ndarray], point_desc: np.ndarray,
-                    point_cat: np.ndarray, keypoint: np.ndarray | None = None) -> np.ndarray:
+                    point_cat: np.ndarray, keypoint: np.ndarray | None = None,
+                    lamps: np.ndarray | None = None) -> np.ndarray:
     """[P, F] raw point features of a described map (what ``evaluate_world`` builds).
 
     Args:
@@ -109,6 +110,8 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
       point_cat: [P] majority category (-1 unknown).
       keypoint: [n_obs, 3] the observations' re-detected SIFT size, response and strength
         rank (``DatabaseObservations.keypoint``).
+      lamps: (L, 3) the street lamps' positions in the map's frame (the table's last column,
+        ``mapped_lamp_light``), or None (no such column).
     """
     from rp_jax.mapsum.outcome_scorer import point_features
     from rp_jax.sources.colmap_model import opencv_camera
@@ -125,7 +128,7 @@ def map_point_table(config, rec, map_points, obs_descriptors: np.ndarray,
         repeatability={k: point_rep[k] for k in ("robotcar",) if k in point_rep},
         point_category=point_cat,
         keypoint=keypoint, up_axis=int(config.map.up_axis), ratio=float(config.map.match_ratio),
-        num_retrieved=int(config.map.num_retrieved))
+        num_retrieved=int(config.map.num_retrieved), lamps=lamps)
 
 
 def query_table(times: Sequence[dt.datetime], image_paths: Sequence[Path],

@@ -127,17 +127,19 @@ FEATURE_GROUPS = {
                    "near_match_margin", "worst_near_margin"),
     "keypoint": ("keypoint_",),
     "category": ("category_",),
+    "lamps": ("mapped_lamp_",),
 }
 
 
-def _point_names(num_columns: int) -> list[str]:
+def _point_names(num_columns: int, lamps: bool = False) -> list[str]:
     from rp_jax.mapsum.outcome_scorer import point_feature_names
 
     for t in range(0, 64):
-        names = point_feature_names({"robotcar": t} if t else {})
+        names = point_feature_names({"robotcar": t} if t else {}, lamps=lamps)
         if len(names) == num_columns:
             return names
-    raise ValueError(f"{num_columns} point-feature columns match no RP length (nor none)")
+    raise ValueError(f"{num_columns} point-feature columns match no RP length (nor none)"
+                     + (" with the mapped lamps' column" if lamps else ""))
 
 
 def columns_without(names: Sequence[str], groups: Sequence[str]) -> np.ndarray:
@@ -223,16 +225,17 @@ class OutcomeScorers:
 
     def __init__(self, settings: ScorerSettings, nets: dict, params: dict, standardizers: dict,
                  columns: np.ndarray, summary: dict,
-                 place: tuple[float, float] | None = None):
+                 place: tuple[float, float] | None = None, lamps: bool = False):
         self.settings, self.nets, self.params = settings, nets, params
         self.standardizers, self.columns, self.summary = standardizers, columns, summary
-        self.place = place
+        self.place, self.reads_lamps = place, lamps
 
     @property
     def reads_rp(self) -> bool:
         """Whether the scorers were trained with the RobotCar RP's columns (the CMU-like
         layout's are; a layout whose labels come from maps no RP scored has none)."""
-        return any(n.startswith("rp_") for n in _point_names(len(self.columns)))
+        return any(n.startswith("rp_")
+                   for n in _point_names(len(self.columns), lamps=self.reads_lamps))
 
     def point_scores(self, kind: str, point_table: np.ndarray, when: dt.datetime,
                      image_path: Path | None = None) -> np.ndarray:
@@ -304,7 +307,7 @@ def train_outcome_scorers(config, workdir: str | Path, predictor, *, progress: b
 
 def fit_scorers(settings: ScorerSettings, data: LabelStack, groups: Sequence[str], out: Path,
                 label_fingerprint: str, *, drop_groups: Sequence[str] = (),
-                place: tuple[float, float] | None = None,
+                place: tuple[float, float] | None = None, lamps: bool = False,
                 progress: bool = True) -> OutcomeScorers:
     """Both scorers (each ``settings.members`` networks) on ``data``'s pairs, saved in
     ``out`` (``{kind}_{k}.msgpack``, ``fit.json``) and loaded from there where a previous
@@ -317,12 +320,13 @@ def fit_scorers(settings: ScorerSettings, data: LabelStack, groups: Sequence[str
       label_fingerprint: what the labels were made with (a change trains again).
       drop_groups: ``FEATURE_GROUPS`` left out.
       place: where the sun of a query's time is computed (the labels' place).
+      lamps: the point tables end with the mapped lamps' column (``mapped_lamp_light``).
     """
     from flax import serialization
 
     from rp_jax.mapsum.outcome_scorer import OutcomeScorer, Standardizer
 
-    names = _point_names(data.points.shape[1])
+    names = _point_names(data.points.shape[1], lamps=lamps)
     columns = columns_without(names, drop_groups)
     lab = data.labels
     asked = {
@@ -384,7 +388,7 @@ def fit_scorers(settings: ScorerSettings, data: LabelStack, groups: Sequence[str
                               for k in KINDS},
         })
     return OutcomeScorers(settings, nets, params, stds, columns,
-                          {**summary, "history": history}, place=place)
+                          {**summary, "history": history}, place=place, lamps=lamps)
 
 
 # ----------------------------------------------------------------------------- rows
@@ -412,6 +416,14 @@ def _train_for_run(config, workdir: Path, progress: bool):
     return scorers, {k: v for k, v in scorers.summary.items() if k != "history"}
 
 
+def _lamps_of(ctx) -> np.ndarray:
+    lamps = ctx.extra.get("lamps")
+    if lamps is None:
+        raise ValueError("the outcome scorers learned with the mapped lamps' column "
+                         "(config.map.mapped_lamps) and this world's map has no lamps")
+    return lamps
+
+
 def _world_scores(kind: str):
     """``PredictorSpec.world_scores``: the test map's point table once per world, then
     each bucket's [P] scores (the twin's once)."""
@@ -425,7 +437,8 @@ def _world_scores(kind: str):
         table = ctx.cached("outcome_point_table", lambda: map_point_table(
             ctx.config, ctx.extra["reconstruction"], ctx.map_points, obs.descriptors,
             ctx.extra["point_rep"] if scorers.reads_rp else {}, ctx.point_descriptors,
-            point_categories(ctx.map_points, obs.category), obs.keypoint))
+            point_categories(ctx.map_points, obs.category), obs.keypoint,
+            lamps=_lamps_of(ctx) if scorers.reads_lamps else None))
         first: dict = {}
         for q in ctx.queries:
             first.setdefault(q["bucket"], q["image_path"])

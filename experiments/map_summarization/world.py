@@ -158,6 +158,9 @@ class WorldMap:
     index: object
     vocabulary: np.ndarray
     parts: np.ndarray
+    # The street lamps' positions (L, 3) in the map's frame where the layout knows them
+    # (``conditions.build_map`` with ``config.map.mapped_lamps``), else None.
+    lamps: np.ndarray | None = None
 
 
 def build_map(config, root: Path, predictors: Mapping[str, object], seed: int, *,
@@ -302,7 +305,8 @@ def world_context(config, seed: int, world: WorldMap, queries: list[dict],
         inliers_by_date=full.inliers_by_date,
         extra={"point_rep": world.point_rep, "reconstruction": world.reconstruction,
                "database_dir": world.image_dir,
-               "observations": world.observations, "progress": progress},
+               "observations": world.observations, "lamps": world.lamps,
+               "progress": progress},
     )
     info: dict = {}
     for name, model in predictors.items():

@@ -19,7 +19,8 @@ Inputs, all known to a server that holds the map and is told the query's time:
   descriptor's competition among the map points (``distinctiveness_weights``, global) and
   among the points the same database images see (``self_matching``: the ratio test that
   2D-3D matching applies, played with the map's own observations as queries); its semantic
-  class where the layout has one;
+  class where the layout has one; where the map comes with the positions of its street
+  lamps (``mapped_lamp_light``), how much of their light reaches it;
 * of the **query** (``query_features``): time of day and day of year (cyclic), the sun's
   elevation and azimuth at the map's place, and the day's weather where it is known.
 
@@ -56,6 +57,7 @@ __all__ = [
     "bce_loss",
     "create_train_state",
     "keypoint_columns",
+    "mapped_lamp_light",
     "point_feature_names",
     "point_features",
     "query_features",
@@ -153,8 +155,9 @@ def self_matching(map_points: MapPoints, obs_descriptors: np.ndarray,
     return share, mean_margin, worst
 
 
-def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
-    """Names of ``point_features``' columns for RP vectors of the given lengths."""
+def point_feature_names(repeatability: Mapping[str, int], lamps: bool = False) -> list[str]:
+    """Names of ``point_features``' columns for RP vectors of the given lengths (and the
+    mapped lamps' column where ``lamps``)."""
     names = []
     for k, t in repeatability.items():
         names += [f"rp_{k}_{j}" for j in range(t)] + [f"rp_{k}_mean", f"rp_{k}_spread"]
@@ -163,7 +166,28 @@ def point_feature_names(repeatability: Mapping[str, int]) -> list[str]:
               "self_match_share", "self_match_margin", "near_match_share",
               "near_match_margin", "worst_near_margin", *KEYPOINT_FEATURES]
     names += [f"category_{categories.NAMES[c]}" for c in _CATEGORY_IDS] + ["category_unknown"]
-    return names
+    return names + ["mapped_lamp_light"] if lamps else names
+
+
+# A point on a lamp's own head stays finite: distances under a metre count as one.
+_LAMP_MIN_DISTANCE_M = 1.0
+
+
+def mapped_lamp_light(xyz: np.ndarray, lamps: np.ndarray) -> np.ndarray:
+    """[P] log10 of the sum over street lamps at ``lamps`` (L, 3) of 1 / r² at points
+    ``xyz`` (P, 3), r in metres: the inverse-square law's share of the lamps' light that
+    reaches each point, up to the lamps' (unknown) intensity and the point's (unknown)
+    orientation. A map server can know where a street's lamps stand without a night image:
+    a lamp inventory (OpenStreetMap's ``highway=street_lamp`` nodes, a council's asset
+    register) gives them. Without lamps, -inf is never returned: the sum floors at 1e-6.
+    """
+    xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
+    lamps = np.asarray(lamps, np.float64).reshape(-1, 3)
+    total = np.zeros(len(xyz))
+    for lamp in lamps:
+        r2 = ((xyz - lamp) ** 2).sum(1)
+        total += 1.0 / np.maximum(r2, _LAMP_MIN_DISTANCE_M**2)
+    return np.log10(np.maximum(total, 1e-6))
 
 
 def keypoint_columns(map_points: MapPoints, keypoint: np.ndarray | None) -> np.ndarray:
@@ -216,6 +240,7 @@ def point_features(
     up_axis: int = 2,
     ratio: float = 0.8,
     num_retrieved: int = 5,
+    lamps: np.ndarray | None = None,
 ) -> np.ndarray:
     """[P, F] float32 features of every map point (columns: ``point_feature_names``).
 
@@ -235,6 +260,8 @@ def point_features(
       num_retrieved: images retrieved per query in localization: the ``near_*`` columns
         replay the matching against the points of an image and its ``num_retrieved - 1``
         nearest database images (by camera centre), the candidates a query there meets.
+      lamps: (L, 3) the street lamps' positions in the map's frame, for the last column
+        (``mapped_lamp_light``); None: no such column.
 
     Missing values (a point without a described observation) are 0; the share of described
     observations says how much the descriptor features can be trusted.
@@ -305,6 +332,8 @@ def point_features(
         keypoint_columns(mp, keypoint),
         onehot.astype(np.float64),
     ]
+    if lamps is not None:
+        cols.append(mapped_lamp_light(mp.xyz, lamps)[:, None])
     out = np.concatenate(cols, axis=1)
     return np.nan_to_num(out).astype(np.float32)
 

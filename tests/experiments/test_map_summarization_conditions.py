@@ -369,3 +369,67 @@ def test_a_counterfactual_world_is_named_as_one_in_the_report(tmp_path):
     assert "**Counterfactual worlds**" in lines and "world seeds 0, 3" in lines
     assert "night, night-rain: no motion blur and no sensor noise" in lines
     assert mcr._counterfactual_lines(None) == []
+
+
+def test_mapped_lamps_give_the_outcome_scorers_the_lamps_light(tiny, tmp_path):
+    import numpy as np
+
+    from experiments.map_summarization import layout_outcomes, methods, outcome_labels
+    from experiments.map_summarization import outcome_scorer as mos
+    from rp_jax.mapsum.localization_outcomes import OutcomeLabels
+    from rp_jax.mapsum.outcome_scorer import mapped_lamp_light
+
+    workdir, _ = tiny
+    config = mc.get_config("tiny")  # the fixture's command line, with the lamps
+    config.input.data_dir = str(workdir.parent / "data" / "tfds")
+    config.map.ransac_iterations = 1000
+    config.map.mapped_lamps = True
+    labels, table, queries = layout_outcomes.world_outcomes(
+        config, mc.ROBOTCAR_SEASONS, 1, tmp_path, place=mc.ROBOTCAR_LOCATION, progress=False)
+    name = f"{mc.ROBOTCAR_SEASONS.name}_seed1.npz"  # the fixture's label world, no lamps
+    theirs = OutcomeLabels.load(workdir / outcome_labels.LABEL_DIR / name)
+    with np.load(workdir / outcome_labels.LABEL_DIR / name) as z:
+        assert str(z["fingerprint"]) != str(np.load(tmp_path / name)["fingerprint"])
+        np.testing.assert_array_equal(table[:, :-1], z["point_table"])
+    np.testing.assert_array_equal(labels.inlier, theirs.inlier)  # the same outcomes
+
+    root = mc.ensure_layout(config, 1, progress=False)
+    world = mc.build_map(config, root, {}, 1, progress=False)
+    lamps = mc.street_lamps(config, 1)
+    assert len(lamps) >= 2 and world.lamps is not None
+    np.testing.assert_allclose(world.lamps, lamps)
+    np.testing.assert_allclose(table[:, -1], mapped_lamp_light(world.map_points.xyz, lamps),
+                               rtol=1e-5)
+    assert table[:, -1].std() > 0.1  # near and far from a lamp
+
+    scorers = mos.fit_scorers(mos.settings_of(config),
+                              mos.stack_groups([(labels, table, queries)]), ["seed1"],
+                              tmp_path / "scorers", "lamps", place=mc.ROBOTCAR_LOCATION,
+                              lamps=True, progress=False)
+    assert scorers.reads_lamps and not scorers.reads_rp
+    fit = json.loads((tmp_path / "scorers" / "fit.json").read_text())
+    assert fit["asked"]["features"][-1] == "mapped_lamp_light"
+    obs = world.observations
+    when = rcs.traversal_start("night")
+    ctx = methods.WorldContext(
+        config=config, seed=1, map_points=world.map_points, parts=world.parts,
+        point_descriptors=world.point_descriptors,
+        queries=[{"bucket": when, "image_path": root / "nowhere.jpg"}],
+        extra={"observations": obs, "reconstruction": world.reconstruction, "point_rep": {},
+               "lamps": world.lamps})
+    at_time, _ = mos._world_scores("outcome")(ctx, scorers)
+    scores = at_time(methods.At(time=when, date=when.date()))
+    assert scores.shape == (world.map_points.num_points,) and np.isfinite(scores).all()
+    ctx.extra["lamps"] = None
+    ctx._cache.clear()
+    with pytest.raises(ValueError, match="mapped_lamps"):
+        mos._world_scores("outcome")(ctx, scorers)[0](methods.At(time=when, date=when.date()))
+
+
+def test_mapped_lamps_need_the_synthetic_world(tmp_path, capsys):
+    code = mc.main(["--size", "tiny", "--workdir", str(tmp_path / "w"),
+                    f"--config.map.root={tmp_path}", "--config.map.mapped_lamps=True"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "config.map.mapped_lamps=True" in err and "config.map.root" in err
+    assert not (tmp_path / "w" / "metrics.json").exists()

@@ -14,6 +14,7 @@ from rp_jax.mapsum.outcome_scorer import (
     Standardizer,
     create_train_state,
     keypoint_columns,
+    mapped_lamp_light,
     point_feature_names,
     point_features,
     query_features,
@@ -52,6 +53,31 @@ def test_point_features_shapes_and_columns():
     np.testing.assert_array_equal(col["category_unknown"], cat == -1)
     # The synthetic map's descriptors are distinct and noisy by 2 units: found every time.
     assert col["self_match_share"].mean() > 0.9
+
+
+def test_mapped_lamp_light_is_the_inverse_square_law_summed_over_the_lamps():
+    lamps = np.array([[0.0, 0.0, 6.0], [10.0, 0.0, 6.0]])
+    xyz = np.array([[0.0, 0.0, 4.0], [5.0, 0.0, 6.0], [0.0, 0.0, 6.2], [0.0, 300.0, 0.0]])
+    # Under a head, between two, within a metre of one (floored), far from both.
+    expected = [1 / 4 + 1 / 104, 2 / 25, 1.0 + 1 / 100.04,
+                1 / (300**2 + 36) + 1 / (300**2 + 100 + 36)]
+    np.testing.assert_allclose(mapped_lamp_light(xyz, lamps), np.log10(expected), rtol=1e-9)
+    assert mapped_lamp_light(xyz, np.zeros((0, 3))).tolist() == [-6.0] * 4  # no lamp: floor
+
+
+def test_point_features_end_with_the_lamps_light_where_the_map_has_lamps():
+    mp, obs_desc, centres, sizes = _tiny_map()
+    kwargs = dict(camera_centres=centres, image_sizes=sizes, obs_descriptors=obs_desc,
+                  point_descriptors=point_descriptors(mp, obs_desc), repeatability={},
+                  up_axis=1)
+    without = point_features(mp, **kwargs)
+    lamps = np.array([[0.0, -6.0, 5.0], [25.0, -6.0, -5.0]])
+    with_lamps = point_features(mp, lamps=lamps, **kwargs)
+    names = point_feature_names({}, lamps=True)
+    assert with_lamps.shape == (mp.num_points, len(names)) and names[-1] == "mapped_lamp_light"
+    assert point_feature_names({}) == names[:-1]
+    np.testing.assert_array_equal(with_lamps[:, :-1], without)
+    np.testing.assert_allclose(with_lamps[:, -1], mapped_lamp_light(mp.xyz, lamps), rtol=1e-6)
 
 
 def test_self_matching_sees_a_twin_descriptor():
