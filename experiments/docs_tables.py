@@ -77,6 +77,7 @@ NIGHT_FACTORS = RESULTS / "map_summarization_night_factors" / "metrics.json"
 # The by-condition run on copies of its worlds whose nights are rendered without the motion
 # blur and the sensor noise (``night_factors --write-layouts``): a counterfactual.
 NIGHTS_CF = RESULTS / "map_summarization_conditions_nights_cf" / "metrics.json"
+NIGHTS_CF_LAMPS = RESULTS / "map_summarization_conditions_nights_cf_lamps" / "metrics.json"
 SUITE_TIMES = RESULTS / "suite_times.json"
 UNIVERSAL_RP = RESULTS / "universal_rp" / "metrics.json"
 BENCHMARK = RESULTS / "benchmark.json"
@@ -478,6 +479,19 @@ def nights_counterfactual_tables(metrics: Mapping | None, path: Path = NIGHTS_CF
     return body + f"\nRun: {run_caption(metrics)}.\n"
 
 
+def mapped_lamps_tables(without: Mapping | None, with_lamps: Mapping | None) -> str:
+    """The counterfactual nights' run again with the mapped lamps' column: the scorers
+    without and with it (``conditions_report.mapped_lamps_markdown``), both captions."""
+    if without is None or with_lamps is None:
+        return ("_Both counterfactual by-condition runs are needed "
+                f"(`{NIGHTS_CF.as_posix()}` and `{NIGHTS_CF_LAMPS.as_posix()}`)._\n")
+    from experiments.map_summarization import conditions_report
+
+    body = conditions_report.mapped_lamps_markdown(without, with_lamps).rstrip("\n") + "\n"
+    return (body + f"\nWithout the column: {run_caption(without)}.\n\n"
+            f"With it: {run_caption(with_lamps)}.\n")
+
+
 def map_summarization_spread(earlier: Mapping | None, later: Mapping | None) -> str:
     """The same default command run twice (``report.spread_markdown``), with both captions."""
     if earlier is None or later is None:
@@ -676,6 +690,8 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
         read_json(root / NIGHT_FACTORS)),
     "map_summarization_nights_counterfactual": lambda root: nights_counterfactual_tables(
         read_json(root / NIGHTS_CF)),
+    "map_summarization_mapped_lamps": lambda root: mapped_lamps_tables(
+        read_json(root / NIGHTS_CF), read_json(root / NIGHTS_CF_LAMPS)),
     "map_summarization_spread": lambda root: map_summarization_spread(
         read_json(root / MAPSUM_SPREAD / "earlier.json"),
         read_json(root / MAPSUM_SPREAD / "later.json")),

@@ -527,6 +527,7 @@ def run(config: ml_collections.ConfigDict, workdir: str | os.PathLike, *,
         for c in conditions}
     labels = {k: CONDITION_LABELS.get(k, methods.row_of(k, config).label) for k in rows}
     metrics.update({
+        "mapped_lamps": bool(m.mapped_lamps),
         "seeds": seeds,
         "ratios": ratios,
         "thresholds": list(THRESHOLD_KEYS),

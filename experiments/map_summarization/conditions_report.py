@@ -14,7 +14,7 @@ from experiments.map_summarization.conditions_protocol import (
 )
 from experiments.map_summarization.pooling import MAIN_THRESHOLD, THRESHOLD_KEYS
 
-__all__ = ["markdown", "tables_markdown"]
+__all__ = ["mapped_lamps_markdown", "markdown", "tables_markdown"]
 
 TH_NAME = {"0.25m_2deg": "(0.25 m, 2 deg)", "0.5m_5deg": "(0.5 m, 5 deg)",
            "5m_10deg": "(5 m, 10 deg)"}
@@ -183,14 +183,69 @@ def tables_markdown(metrics: Mapping) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _scorer_lines(summary: Mapping | None) -> list[str]:
+def _scorer_lines(summary: Mapping | None, mapped_lamps: bool = False) -> list[str]:
     if not summary:
         return []
+    lamps = (" Their point features include the mapped street lamps' light "
+             "(`config.map.mapped_lamps`)." if mapped_lamps else "")
     return [f"The outcome scorers learned from label worlds never evaluated here "
             f"({', '.join(summary['label_groups'])}): {summary['queries']} queries "
             f"({summary['queries_correct']} localized within (5 m, 10 deg) on their own full "
             f"map), {summary['pairs_of_correct_queries']} point-query pairs of those, "
-            f"{summary['positives']} PnP inliers.", ""]
+            f"{summary['positives']} PnP inliers.{lamps}", ""]
+
+
+# The rows that read neither outcome scorer nor an RP: equal in two runs on the same worlds
+# whose scorers alone differ.
+SCORER_FREE_ROWS = ("kcover", "random", "most_observed", "maplab", "oracle_agnostic",
+                    "oracle_date", "oracle_inliers")
+
+
+def mapped_lamps_markdown(without: Mapping, with_lamps: Mapping) -> str:
+    """Two by-condition runs on the same worlds whose outcome scorers differ only in the
+    mapped lamps' column: per group at ``PRIMARY_RATIOS`` and ``PRIMARY_THRESHOLDS``, each
+    scorer's accuracy without and with it, the matched oracles, and the time-aware scorer
+    minus its twin with the column (the second run's clustered interval).
+
+    Raises:
+      ValueError: the runs differ in more than that (their worlds, label worlds, or a row
+        that reads no scorer).
+    """
+    a, twin = CONTRASTS[0]
+    for key in ("seeds", "size", "counterfactual", "queries"):
+        if without.get(key) != with_lamps.get(key):
+            raise ValueError(f"the two runs differ in {key}: {without.get(key)!r} against "
+                             f"{with_lamps.get(key)!r}")
+    groups = [(without.get("outcome_scorers") or {}).get("label_groups"),
+              (with_lamps.get("outcome_scorers") or {}).get("label_groups")]
+    if groups[0] != groups[1] or groups[0] is None:
+        raise ValueError(f"the two runs' scorers differ in their label worlds: {groups}")
+    rows = []
+    for name, g0 in without["groups"].items():
+        g1 = with_lamps["groups"][name]
+        for row in (r for r in SCORER_FREE_ROWS if r in g0["accuracy"]):
+            if g0["accuracy"][row] != g1["accuracy"].get(row):
+                raise ValueError(f"{name}: {row} differs between the runs, which read no "
+                                 "scorer: they differ in more than the scorers' column")
+        for r in PRIMARY_RATIOS:
+            for th in PRIMARY_THRESHOLDS:
+                c = g1["contrasts"][f"{a} - {twin}"][r][th]
+                rows.append((f"{name}, {100 * float(r):.0f} %, {TH_NAME[th]}", [
+                    f"{g0['accuracy'][a][r][th]:.1f}", f"{g1['accuracy'][a][r][th]:.1f}",
+                    f"{g0['accuracy'][twin][r][th]:.1f}", f"{g1['accuracy'][twin][r][th]:.1f}",
+                    f"{g1['accuracy']['oracle_date'][r][th]:.1f}",
+                    f"{g1['accuracy']['oracle_agnostic'][r][th]:.1f}",
+                    f"{c['difference']:+.1f} [{c['interval'][0]:+.1f}, "
+                    f"{c['interval'][1]:+.1f}]"]))
+    return "\n".join([
+        f"Accuracy (%) of the outcome scorer at the query's time (`{a}`) and of its "
+        f"time-agnostic twin (`{twin}`) without and with the mapped lamps' column, the matched "
+        "oracles (the same in both runs, as is every row that reads no scorer), and the "
+        "time-aware scorer minus its twin with the column, in points, with the 95 % interval "
+        "from a bootstrap of whole (world seed, condition) clusters:", "",
+        *_table("group, pruned, threshold", [
+            "time-aware", "time-aware, lamps", "twin", "twin, lamps", "oracle: own condition",
+            "oracle: other conditions", "time-aware minus twin, lamps"], rows), ""])
 
 
 def _counterfactual_lines(counterfactual: Mapping | None) -> list[str]:
@@ -217,7 +272,7 @@ def markdown(metrics: Mapping) -> str:
         "its time-agnostic twin; a query's *date* is its traversal (its condition).",
         "",
         *_counterfactual_lines(metrics.get("counterfactual")),
-        *_scorer_lines(metrics.get("outcome_scorers")),
+        *_scorer_lines(metrics.get("outcome_scorers"), bool(metrics.get("mapped_lamps"))),
         tables_markdown(metrics),
         f"Command: `{prov.get('command', '')}`; code {prov.get('code', '')}; "
         f"{prov.get('machine', '')}; {prov.get('date', '')}.",

@@ -433,3 +433,24 @@ def test_mapped_lamps_need_the_synthetic_world(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "config.map.mapped_lamps=True" in err and "config.map.root" in err
     assert not (tmp_path / "w" / "metrics.json").exists()
+
+
+def test_runs_compared_for_the_lamps_column_must_differ_in_nothing_else():
+    import copy
+    from pathlib import Path
+
+    path = (Path(__file__).parents[2] / "experiments" / "results"
+            / "map_summarization_conditions_nights_cf" / "metrics.json")
+    run = json.loads(path.read_text())
+    text = mcr.mapped_lamps_markdown(run, run)
+    assert text.count("| night, ") == 4 and "time-aware minus twin, lamps" in text
+    night = run["groups"]["night"]["accuracy"]
+    assert f"| {night['outcome_top']['0.9']['5m_10deg']:.1f} |" in text
+    for change in (lambda m: m["groups"]["night"]["accuracy"]["kcover"]["0.9"].update(
+                       {"5m_10deg": 99.0}),
+                   lambda m: m.update(seeds=[0, 1]),
+                   lambda m: m["outcome_scorers"].update(label_groups=["robotcar_seasons/seed5"])):
+        other = copy.deepcopy(run)
+        change(other)
+        with pytest.raises(ValueError, match="differ"):
+            mcr.mapped_lamps_markdown(run, other)
