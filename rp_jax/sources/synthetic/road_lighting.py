@@ -20,10 +20,11 @@ question the road-lighting standards answer in numbers:
 The illuminance is the renderer's own (``night_lights.lamp_geometry``: isotropic point
 sources, inverse-square law and the cosine of incidence, on an upward surface), so the
 class is that of the frames the worlds render. Luminaire arrangement by road width follows
-the design rule of road lighting (van Bommel, "Road Lighting: Fundamentals, Technology and
-Application", Springer 2015, Sec. 13.1; ``arrangement_for``): one row for roads up to
-about the mounting height wide, a staggered pair of rows up to about 1.5 times, opposite
-rows beyond (up to 2-2.5 times).
+the rule of thumb of road-lighting design guides (``arrangement_for``): one row for roads
+up to about the mounting height wide, a staggered pair of rows up to about 1.5 times,
+opposite rows beyond; van Bommel ("Road Lighting: Fundamentals, Technology and
+Application", Springer 2015, Sec. 13.1) describes the arrangements and puts opposite rows
+on roads up to 2-2.5 times the mounting height.
 """
 
 from __future__ import annotations
