@@ -166,7 +166,7 @@ def point_feature_names(repeatability: Mapping[str, int], lamps: bool = False) -
               "self_match_share", "self_match_margin", "near_match_share",
               "near_match_margin", "worst_near_margin", *KEYPOINT_FEATURES]
     names += [f"category_{categories.NAMES[c]}" for c in _CATEGORY_IDS] + ["category_unknown"]
-    return names + ["mapped_lamp_light"] if lamps else names
+    return (names + ["mapped_lamp_light"]) if lamps else names
 
 
 # A point on a lamp's own head stays finite: distances under a metre count as one.
