@@ -388,8 +388,8 @@ def test_mapped_lamps_give_the_outcome_scorers_the_lamps_light(tiny, tmp_path):
         config, mc.ROBOTCAR_SEASONS, 1, tmp_path, place=mc.ROBOTCAR_LOCATION, progress=False)
     name = f"{mc.ROBOTCAR_SEASONS.name}_seed1.npz"  # the fixture's label world, no lamps
     theirs = OutcomeLabels.load(workdir / outcome_labels.LABEL_DIR / name)
-    with np.load(workdir / outcome_labels.LABEL_DIR / name) as z:
-        assert str(z["fingerprint"]) != str(np.load(tmp_path / name)["fingerprint"])
+    with np.load(workdir / outcome_labels.LABEL_DIR / name) as z, np.load(tmp_path / name) as ours:
+        assert str(z["fingerprint"]) != str(ours["fingerprint"])
         np.testing.assert_array_equal(table[:, :-1], z["point_table"])
     np.testing.assert_array_equal(labels.inlier, theirs.inlier)  # the same outcomes
 
