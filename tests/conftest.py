@@ -16,8 +16,7 @@ without, the same 72 passed; on ``tests/test_model.py``, ``test_predict.py`` and
 50.5 and 55.4 s with the fusion emitters, 26.3 and 23.1 s without, and the run 101-110 s of
 CPU against 52-60 s. The whole suite passes either way (docs/testing.md).
 ``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do; the commands the tests start
-inherit the setting. A test that runs one program for many steps asks for the
-``compile_as_the_commands_do`` fixture instead (below).
+inherit the setting.
 """
 
 import os
@@ -25,13 +24,9 @@ import os
 from tests import _session_cache
 
 _session_cache.configure_jax_cache()
-# Each XLA option the suite sets: (the suite's quick-compile value, XLA's own default, which
-# the commands compile with; xla/debug_options_flags.cc). The flags and the fixture
-# ``compile_as_the_commands_do`` below are both made from this one table.
-_COMPILE_OPTIONS = {"xla_backend_optimization_level": (0, 3),
-                    "xla_cpu_use_fusion_emitters": (False, True)}
-_QUICK_COMPILE = tuple(f"--{name}={str(quick).lower()}"
-                       for name, (quick, _) in _COMPILE_OPTIONS.items())
+# The XLA options the suite sets, against XLA's own defaults, which the commands compile with
+# (xla/debug_options_flags.cc: backend optimization level 3, the fusion emitters on).
+_QUICK_COMPILE = ("--xla_backend_optimization_level=0", "--xla_cpu_use_fusion_emitters=false")
 # Each added once: the xdist workers inherit the flags of the pytest process, which read this
 # file first. XLA_FLAGS as written is part of JAX's cache key, so a worker with a flag twice
 # never found the programs a serial run had compiled, nor a serial run the workers'.
@@ -45,30 +40,3 @@ import chex  # noqa: E402
 
 chex.set_n_cpu_devices(2)
 
-import jax  # noqa: E402
-import pytest  # noqa: E402
-
-_AS_THE_COMMANDS_COMPILE = {name: default for name, (_, default) in _COMPILE_OPTIONS.items()}
-
-
-@pytest.fixture
-def compile_as_the_commands_do(monkeypatch):
-    """``jax.jit`` compiles with XLA's own optimizations for the test that asks, the suite's
-    quick-compile flags notwithstanding (per program, through ``compiler_options``).
-
-    For a test that runs one program for many steps, where optimized code pays for its
-    slower compile: the learning test of ``tests/test_train.py`` (188 steps of the default
-    network). Asked by every test of that file and a few others, it made them slower: their
-    programs run for a few steps (experiments/results/suite_times.md). JAX refuses compiler
-    options on a ``jax.jit`` reached inside another trace, so a test that loads a predictor
-    (``predict.load`` takes the parameters' shapes from ``jax.eval_shape`` of the jitted
-    initialisation) cannot ask for it.
-    """
-    jit = jax.jit
-
-    def optimized_jit(*args, **kwargs):
-        kwargs["compiler_options"] = {**_AS_THE_COMMANDS_COMPILE,
-                                      **(kwargs.get("compiler_options") or {})}
-        return jit(*args, **kwargs)
-
-    monkeypatch.setattr(jax, "jit", optimized_jit)

@@ -67,10 +67,15 @@ def test_train_step_compiles_once():
     assert int(state.step) == 3
 
 
-def test_learns_the_task_far_below_the_per_slot_mean(tmp_path, compile_as_the_commands_do):
+def test_learns_the_task_far_below_the_per_slot_mean(tmp_path):
     config = default.get_config()
     config.train.num_epochs = 8
     config.input.batch_size = 128
+    # The experiments' tiny widths (experiments/sec4a/config.py): the default optimiser, loss,
+    # schedule and network shape learn the task as well at a quarter of the channels (val MSE
+    # 0.41 against 0.49 at 64, 64, 128 after 8 epochs) in half the time, compiled quickly as
+    # the rest of the suite (with XLA's optimizations on: 13.0 s against 11.6 s, one run each).
+    config.model.encoder_channels = (16, 16, 32)
     rec_train = learnable_task.make_learnable_task(3000, SCHEDULE, seed=0)
     rec_val = learnable_task.make_learnable_task(500, SCHEDULE, seed=1)
     train.train_and_evaluate(config, tmp_path, ip.ArraySource(rec_train, ip.MODEL_KEYS),
