@@ -662,6 +662,12 @@ def suite_times_table(data: Mapping | None) -> str:
         rows, shares = table(other["runs"])
         lines += ["", f"On {other['machine']} ({other['what']}):", "", *rows,
                   "", f"Pytest wall against the suite before: {shares}."]
+        same = other.get("same_tests")  # the old suite's own tests, run on the code now
+        if same:
+            lines += ["", f"The tests the suite before had, alone ({same['what']}): "
+                      f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
+                      f"{same['before_pytest_s']:.0f} s for the suite before in the same "
+                      f"script, {100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
     return "\n".join(lines) + "\n"
 
 

@@ -358,6 +358,17 @@ def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
     assert "On an Intel Xeon (again):" in text and "2030" not in text
     assert "| now | 9 passed | 700 s | 710 s | 1400 s |" in text
     assert "Pytest wall against the suite before: now 88 %." in text  # 700 / 800
+    assert "The tests the suite before had" not in text  # no such run recorded
+    same = {"what": "the ids both collect", "tests": "8 passed", "pytest_s": 150.0,
+            "before_pytest_s": 420.0}
+    text = docs_tables.suite_times_table({
+        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+        "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
+        "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
+                            "runs": intel, "same_tests": same}]})
+    assert ("The tests the suite before had, alone (the ids both collect): 8 passed in 150 s "
+            "of pytest against 420 s for the suite before in the same script, 36 %.") in text
     assert "No suite timing" in docs_tables.suite_times_table(None)
 
 
