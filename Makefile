@@ -42,8 +42,7 @@ demo: $(INSTALLED)
 
 # Lint first: a ruff finding fails the target before pytest runs. pytest-xdist runs the test
 # files on PYTEST_WORKERS processes, each file whole on one worker (--dist loadfile: a
-# module's fixtures are built once), the files with end-to-end runs first (tests/conftest.py;
-# --no-loadscope-reorder keeps that order instead of xdist's most-tests-first). Run serially, one core sat idle through most of the
+# module's fixtures are built once). Run serially, one core sat idle through most of the
 # suite (JAX compiles, OpenCV and Python are mostly one thread): 15-17 min on 2 cores
 # against 11 min 54 s to 13 min 48 s in two workers (three clean clones, 2026-12-02; README
 # "Two commands").
@@ -63,8 +62,7 @@ test: $(INSTALLED)
 	$(VENV)/bin/ruff check rp_jax experiments tests notebooks
 	PYTHONDONTWRITEBYTECODE= \
 	RP_JAX_TEST_CACHE=$(if $(filter off,$(TEST_CACHE)),off,$(abspath $(TEST_CACHE))) \
-		$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile \
-			--no-loadscope-reorder
+		$(PY) -m pytest -q -p no:cacheprovider -n $(PYTEST_WORKERS) --dist loadfile
 
 # Rules in pyproject.toml ([tool.ruff.lint]); ruff reads the notebooks' code cells too.
 lint: $(INSTALLED)

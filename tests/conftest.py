@@ -40,14 +40,3 @@ import chex  # noqa: E402
 
 chex.set_n_cpu_devices(2)
 
-
-
-def pytest_collection_modifyitems(config, items):
-    """The test files with an end-to-end run (a ``slow`` test) first, each file's own order
-    kept. ``make test`` hands whole files to its workers in this order (``--dist loadfile
-    --no-loadscope-reorder``): the long files start early and the many short ones fill the
-    end, where xdist's own order (files with the most tests first) left a long file with a
-    few tests, such as the two-process training's 17 s, to one worker at the end while the
-    other sat idle (8.4 s in a cold run; experiments/results/suite_times.md)."""
-    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow_files)  # stable: False (slow) first
