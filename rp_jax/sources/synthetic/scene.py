@@ -247,7 +247,9 @@ def build_scene(
                         crosswalk=i == crosswalk_tile,
                         texel=texel,
                     ),
-                    depends=("season", "snow", "snow_pattern"),
+                    # Only a lawn's colour follows the season: a road or sidewalk tile is
+                    # the same texture all year, so it is not drawn again at each season.
+                    depends=("snow", "snow_pattern"),
                 )
             else:
                 gkind = (
@@ -265,7 +267,8 @@ def build_scene(
                         width_m=yb - ya,
                         texel=texel,
                     ),
-                    depends=("season", "snow", "snow_pattern"),
+                    depends=(("season", "snow", "snow_pattern") if gkind == "grass"
+                             else ("snow", "snow_pattern")),
                 )
             if name == "sidewalk_s":  # curb (texture top rows) must face the road (north)
                 qb.add(

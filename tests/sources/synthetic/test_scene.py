@@ -45,3 +45,26 @@ def test_dynamic_objects_move_and_parked_cars_change_by_day():
     assert q1.n != q3.n or not np.allclose(q1.origin, q3.origin)
     q1b, _, _ = dynamic_quads(s, t0)
     np.testing.assert_array_equal(q1.origin, q1b.origin)  # deterministic per instant
+
+
+def test_only_lawn_tiles_are_drawn_again_when_the_season_changes():
+    from rp_jax.sources.synthetic import ground_textures as gt
+    from rp_jax.sources.synthetic.quads import TextureState
+
+    s = build_scene(3, vegetation=0.8)  # lawns in the yards
+    ground = {k: s.textures.specs[k] for k in s.textures.specs if k.startswith("ground:")}
+    kinds = {spec[1]["kind"] for spec in ground.values()}
+    assert kinds == {"road", "sidewalk", "grass"}
+    for key, (_fn, kwargs, depends) in ground.items():
+        assert ("season" in depends) == (kwargs["kind"] == "grass"), key
+    # What makes that right: a road or sidewalk tile is the same texture in every season
+    # (with and without snow), a lawn's is not.
+    for kind in ("road", "sidewalk", "grass"):
+        for snow in (0, 2):
+            tiles = [gt.ground_texture(11, kind, 8.0, 3.0, season=season, snow=snow,
+                                       snow_pattern=1 if snow else 0) for season in (0, 3)]
+            assert np.array_equal(*tiles) == (kind != "grass"), (kind, snow)
+    # So the texture cache draws a road tile once for two seasons.
+    road = next(k for k, spec in ground.items() if spec[1]["kind"] == "road")
+    summer, autumn = TextureState(season=1), TextureState(season=3)
+    assert s.textures.pyramid(road, summer) is s.textures.pyramid(road, autumn)
