@@ -393,6 +393,18 @@ def label_scale_table(results: Mapping | None) -> str:
                f"{entry.get('ours', {}).get('variant', '')}. Run: `python -m experiments.benchmark "
                "label_scale --label-scale-frames N ...`; rows of earlier runs are kept, each "
                "with its own time, machine and load.")
+    # The frames each size rendered before its labelling (a later size renders only the
+    # frames the earlier ones did not), so they add up to the largest world.
+    rendered = [r for r in entry.get("renders") or [] if r.get("rendered")]
+    if rendered:
+        frames = sum(r["rendered"] for r in rendered)
+        wall, cpu = sum(r["seconds"] for r in rendered), sum(r["cpu_s"] for r in rendered)
+        out.append("")
+        out.append(f"Rendering the frames, once, before they are labelled (kept on disk): "
+                   f"{frames:,} frames in {wall:,.0f} s of wall time and {cpu:,.0f} s of CPU "
+                   f"({cpu / frames:.3f} s of CPU a frame) on "
+                   f"{entry.get('cpu_count', '?')} cores, "
+                   f"{entry.get('cpu_model', 'the machine of the rows above')}.")
     return "\n".join(out) + "\n"
 
 

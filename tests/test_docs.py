@@ -332,6 +332,14 @@ def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
     assert "| 10,000 | 2,500 | 0.250 |" in text
     assert "from 0.200 to 0.250 (+25% from the cheapest)" in text and "at most 490 MB" in text
     assert "No `label_scale` result" in docs_tables.label_scale_table({})
+    assert "Rendering the frames" not in text  # no render recorded
+    renders = [{"frames": 1000, "rendered": 1000, "seconds": 60.0, "cpu_s": 100.0},
+               {"frames": 3000, "rendered": 0, "seconds": 0.01, "cpu_s": 0.01},
+               {"frames": 10000, "rendered": 7000, "seconds": 340.0, "cpu_s": 700.0}]
+    text = docs_tables.label_scale_table({"label_scale": {
+        "label_scale": rows, "renders": renders, "cpu_count": 2, "cpu_model": "AMD EPYC"}})
+    assert ("8,000 frames in 400 s of wall time and 800 s of CPU (0.100 s of CPU a frame) "
+            "on 2 cores, AMD EPYC.") in text
 
 
 def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
