@@ -31,6 +31,7 @@ __all__ = [
     "SYNTHETIC_DIR",
     "FrameJob",
     "Plan",
+    "RenderProcessError",
     "SceneSpec",
     "frame_seed",
     "look_at",
@@ -270,8 +271,15 @@ def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
 MIN_FRAMES_PER_WORKER = 16
 
 
+class RenderProcessError(RuntimeError):
+    """A rendering process ended before its frames were written (killed, or out of memory)."""
+
+
 def _worker_init():
+    from rp_jax import worker_processes
+
     cv2.setNumThreads(1)
+    worker_processes.exit_with_parent()  # a killed render leaves no worker rendering on
 
 
 def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = True) -> int:
@@ -279,6 +287,11 @@ def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = Tru
 
     Returns:
       The number of frames rendered (jobs already done are skipped).
+
+    Raises:
+      RenderProcessError: a rendering process ended before it finished (the frames written
+        are kept: a run started again renders the rest).
+      RuntimeError: a frame failed to render (``render_job``'s message names it).
     """
     todo = [j for j in jobs if not j.done()]
     skipped = len(jobs) - len(todo)
@@ -298,24 +311,45 @@ def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = Tru
                 render_job(job)
                 bar.update()
         else:
-            import multiprocessing as mp
-
-            ctx = mp.get_context("spawn")
-            pool = ctx.Pool(workers, initializer=_worker_init)
-            try:
-                for _ in pool.imap_unordered(render_job, todo, chunksize=2):
-                    bar.update()
-                # A clean end: the workers exit on their own. Leaving the pool through
-                # ``with`` terminates it, and its SIGTERM could reach a worker that was
-                # already shutting down, whose JAX signal handler then printed a stack
-                # trace ("*** SIGTERM received ***") into a run that had succeeded.
-                pool.close()
-                pool.join()
-            finally:
-                pool.terminate()  # a failed render: stop the others (no-op after join)
+            _render_in_processes(todo, workers, bar)
     finally:
         bar.close()
     return len(todo)
+
+
+def _render_in_processes(todo: Sequence[FrameJob], workers: int, bar) -> None:
+    """``render_job`` of every job in ``workers`` spawned processes.
+
+    A ``concurrent.futures`` pool, not ``multiprocessing.Pool``: when a worker dies (killed,
+    out of memory) the latter starts another and waits for the lost frame for ever, where
+    this one says so. Its clean end lets the workers exit on their own: a pool terminated
+    at the end sent SIGTERM to workers already shutting down, whose JAX signal handler then
+    printed a stack trace ("*** SIGTERM received ***") into a run that had succeeded.
+    """
+    import concurrent.futures as cf
+    import multiprocessing as mp
+    from concurrent.futures.process import BrokenProcessPool
+
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                  initializer=_worker_init)
+    futures = [pool.submit(render_job, job) for job in todo]
+    try:
+        for future in cf.as_completed(futures):
+            future.result()
+            bar.update()
+    except BrokenProcessPool as e:
+        left = sum(not f.done() or f.cancelled() or f.exception() is not None
+                   for f in futures)
+        raise RenderProcessError(
+            f"a rendering process ended before it finished (killed, or out of memory: try "
+            f"fewer workers than {workers}; or a script that renders when it is imported, "
+            f'without `if __name__ == "__main__":`, which each spawned process imports); '
+            f"{left} of {len(todo)} frames not rendered; the frames written are kept and a "
+            "run started again renders the rest") from e
+    finally:
+        for future in futures:  # a failed frame or Ctrl-C: no more frames are started
+            future.cancel()
+        pool.shutdown(wait=True)
 
 
 # --------------------------------------------------------------------------- planner helpers
