@@ -33,6 +33,8 @@ from pathlib import Path
 
 import ml_collections
 
+from rp_jax import worker_processes
+
 __all__ = ["SeedProcessError", "add_processes", "evaluate_in_processes", "missing_seeds",
            "outcome_settings", "run_in_processes"]
 
@@ -146,19 +148,11 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
         # hour); what finished is on disk and a run started again goes on from it.
         log.warning("interrupted: stopping %d processes; what finished is kept in %s", n,
                     workdir)
-        _terminate(pool)
+        worker_processes.terminate(pool)
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
-
-def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Ends the pool's processes now, whatever job they are in."""
-    for process in list((getattr(pool, "_processes", None) or {}).values()):
-        if process.is_alive():
-            process.terminate()
-    for process in list((getattr(pool, "_processes", None) or {}).values()):
-        process.join(timeout=10)
 
 def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdir: Path,
                           seeds: Sequence[int], fingerprint: str, processes: int, *,

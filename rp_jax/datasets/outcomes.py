@@ -41,7 +41,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import json
 import logging
-import multiprocessing as mp
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -173,9 +172,7 @@ def build(builder, *, manual_dir: str | os.PathLike | None = None,
                 write(job, path)
                 bar.update(1)
         else:
-            spawn = mp.get_context("spawn")
-            with cf.ProcessPoolExecutor(max_workers=workers, mp_context=spawn,
-                                        initializer=worker_processes.exit_with_parent) as pool:
+            with worker_processes.process_pool(workers) as pool:
                 for fut in cf.as_completed([pool.submit(w, j, p) for j, p, w in todo]):
                     fut.result()
                     bar.update(1)

@@ -320,36 +320,33 @@ def run_jobs(jobs: Sequence[FrameJob], *, workers: int = 1, progress: bool = Tru
 def _render_in_processes(todo: Sequence[FrameJob], workers: int, bar) -> None:
     """``render_job`` of every job in ``workers`` spawned processes.
 
-    A ``concurrent.futures`` pool, not ``multiprocessing.Pool``: when a worker dies (killed,
-    out of memory) the latter starts another and waits for the lost frame for ever, where
-    this one says so. Its clean end lets the workers exit on their own: a pool terminated
-    at the end sent SIGTERM to workers already shutting down, whose JAX signal handler then
-    printed a stack trace ("*** SIGTERM received ***") into a run that had succeeded.
+    ``worker_processes.process_pool``, not ``multiprocessing.Pool``: when a worker dies
+    (killed, out of memory) the latter starts another and waits for the lost frame for
+    ever, where this one says so. Its clean end lets the workers exit on their own: a pool
+    terminated at the end sent SIGTERM to workers already shutting down, whose JAX signal
+    handler then printed a stack trace ("*** SIGTERM received ***") into a run that had
+    succeeded.
     """
     import concurrent.futures as cf
-    import multiprocessing as mp
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                                  initializer=_worker_init)
-    futures = [pool.submit(render_job, job) for job in todo]
-    try:
-        for future in cf.as_completed(futures):
-            future.result()
-            bar.update()
-    except BrokenProcessPool as e:
-        left = sum(not f.done() or f.cancelled() or f.exception() is not None
-                   for f in futures)
-        raise RenderProcessError(
-            f"a rendering process ended before it finished (killed, or out of memory: try "
-            f"fewer workers than {workers}; or a script that renders when it is imported, "
-            f'without `if __name__ == "__main__":`, which each spawned process imports); '
-            f"{left} of {len(todo)} frames not rendered; the frames written are kept and a "
-            "run started again renders the rest") from e
-    finally:
-        for future in futures:  # a failed frame or Ctrl-C: no more frames are started
-            future.cancel()
-        pool.shutdown(wait=True)
+    from rp_jax import worker_processes
+
+    with worker_processes.process_pool(workers, initializer=_worker_init) as pool:
+        futures = [pool.submit(render_job, job) for job in todo]
+        try:
+            for future in cf.as_completed(futures):
+                future.result()
+                bar.update()
+        except BrokenProcessPool as e:
+            left = sum(not f.done() or f.cancelled() or f.exception() is not None
+                       for f in futures)
+            raise RenderProcessError(
+                f"a rendering process ended before it finished (killed, or out of memory: "
+                f"try fewer workers than {workers}; or a script that renders when it is "
+                'imported, without `if __name__ == "__main__":`, which each spawned process '
+                f"imports); {left} of {len(todo)} frames not rendered; the frames written are "
+                "kept and a run started again renders the rest") from e
 
 
 # --------------------------------------------------------------------------- planner helpers
