@@ -49,11 +49,17 @@ def exit_with_parent(parent: int | None = None) -> None:
 
 
 def terminate(pool: cf.ProcessPoolExecutor) -> None:
-    """Ends a pool's worker processes now, whatever job they are in."""
+    """Ends a pool's worker processes now, whatever job they are in.
+
+    With SIGKILL: on SIGTERM the signal handlers of libraries the workers load (pycolmap's
+    and JAX's) printed a stack trace for each worker into the user's terminal. Either way
+    the job is cut short; its files are written atomically, so at most a hidden temporary
+    file is left (``rp_jax.files``).
+    """
     processes = list((getattr(pool, "_processes", None) or {}).values())
     for process in processes:
         if process.is_alive():
-            process.terminate()
+            process.kill()
     for process in processes:
         process.join(timeout=10)
 
