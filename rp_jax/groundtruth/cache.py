@@ -33,6 +33,7 @@ import hashlib
 import json
 import logging
 import re
+import threading
 import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -78,9 +79,16 @@ def save_npz_compressed(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
         np.savez_compressed(f, **arrays)
 
 
+# One thread at a time reads a .npz: NumPy parses each array's header with
+# ``ast.literal_eval``, and CPython 3.11's AST construction is not thread-safe (a build
+# matching in threads stopped at random with "SystemError: AST constructor recursion depth
+# mismatch"; python/cpython#106905, fixed in 3.13).
+_NPZ_READ = threading.Lock()
+
+
 def load_npz(path: Path) -> dict[str, np.ndarray]:
     """Every array of a ``.npz``, read into memory (no pickles)."""
-    with np.load(path, allow_pickle=False) as z:
+    with _NPZ_READ, np.load(path, allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
 
 
