@@ -116,7 +116,10 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
 
     n = min(int(processes), len(jobs))
     context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=context)
+    # Its processes exit with this one: a killed run must not leave them evaluating
+    # (a world seed takes up to half an hour).
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=context,
+                               initializer=worker_processes.exit_with_parent)
     try:
         with tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
                   disable=not progress) as done:

@@ -1,6 +1,7 @@
 """Nothing a run starts outlives it or piles up (issue 14, "Leaks").
 
-* label workers exit when their build is SIGKILLed (they went on for minutes);
+* label workers exit when their build is SIGKILLed (they went on for minutes), and so do a
+  map-summarization run's seed processes;
 * a killed build's partial TFDS folder (``incomplete.*``) is removed by the next build of
   the same dataset/config/version, and only then;
 * building leaves no empty ``/tmp/tmp*tfds`` folder (TFDS made one per builder).
@@ -73,6 +74,43 @@ def test_label_workers_exit_when_the_build_is_killed(tmp_path):
         for w in workers:  # only on failure: the workers this test started, by pid
             if _alive(w):
                 os.kill(w, signal.SIGKILL)
+
+
+_TWO_SEEDS = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+    from experiments.map_summarization import seed_processes
+
+    seed_processes.evaluate_in_processes("tests.experiments._seed_driver", None,
+                                         Path(sys.argv[1]), [90, 91], "abc", 2,
+                                         progress=False)
+""")
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_seed_processes_exit_when_their_run_is_killed(tmp_path):
+    # The stand-in driver writes started<seed> (its pid) and sleeps a minute.
+    parent = subprocess.Popen([sys.executable, "-c", _TWO_SEEDS, str(tmp_path)], cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    seeds: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while len(seeds) < 2 and time.monotonic() < deadline and parent.poll() is None:
+            time.sleep(0.2)
+            seeds = [int(p.read_text()) for p in tmp_path.glob("started*") if p.read_text()]
+        assert len(seeds) == 2, "the two seed processes never started their seeds"
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 10
+        while any(_alive(s) for s in seeds) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not [s for s in seeds if _alive(s)], "seed processes outlived their run"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+        for s in seeds:  # only on failure: the processes this test started, by pid
+            if _alive(s):
+                os.kill(s, signal.SIGKILL)
 
 
 def test_a_builder_leaves_no_temporary_folder(tmp_path, monkeypatch):
