@@ -26,6 +26,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures.process import BrokenProcessPool
 
 __all__ = ["exit_with_parent", "POLL_SECONDS", "process_pool", "terminate"]
 
@@ -81,6 +82,13 @@ def process_pool(workers: int, *, initializer: Callable[[], None] = exit_with_pa
     except BaseException as e:  # an error, Ctrl-C, an abandoned generator (GeneratorExit)
         if isinstance(e, (KeyboardInterrupt, SystemExit)):
             terminate(pool)
+        elif isinstance(e, BrokenProcessPool):
+            e.add_note(
+                f"A worker process ended before it finished: killed, or out of memory (try "
+                f"fewer workers than {workers}), or started from a script that runs this "
+                'when it is imported, without `if __name__ == "__main__":` (each spawned '
+                "worker imports it). What finished is kept; a run started again goes on "
+                "from it.")
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True)

@@ -1,7 +1,9 @@
 """The pool of worker processes the long jobs share (rp_jax/worker_processes.py); workers
 that exit with a killed parent: tests/reliability/test_leaks.py."""
 
+import os
 import time
+from concurrent.futures.process import BrokenProcessPool
 
 import pytest
 
@@ -35,3 +37,10 @@ def test_leaving_normally_waits_for_every_job():
     with worker_processes.process_pool(2) as pool:
         jobs = [pool.submit(pow, 2, k) for k in range(6)]
     assert [j.result() for j in jobs] == [1, 2, 4, 8, 16, 32]
+
+
+def test_a_worker_that_dies_is_named_with_what_to_try():
+    with pytest.raises(BrokenProcessPool) as raised, worker_processes.process_pool(2) as pool:
+        pool.submit(os._exit, 1).result()  # the worker ends abruptly, as a killed one does
+    note = " ".join(getattr(raised.value, "__notes__", []))
+    assert "fewer workers than 2" in note and 'if __name__ == "__main__":' in note
