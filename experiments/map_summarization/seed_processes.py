@@ -25,9 +25,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
-import multiprocessing
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
@@ -115,14 +114,12 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
     from rp_jax.progress import bar as tqdm  # the one progress helper
 
     n = min(int(processes), len(jobs))
-    context = multiprocessing.get_context("spawn")  # JAX and OpenCV threads do not fork
-    # Its processes exit with this one: a killed run must not leave them evaluating
-    # (a world seed takes up to half an hour).
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=context,
-                               initializer=worker_processes.exit_with_parent)
     try:
-        with tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
-                  disable=not progress) as done:
+        # Spawned processes that exit with this one (a killed run must not leave them
+        # evaluating: a world seed takes up to half an hour); Ctrl-C ends them at once.
+        with worker_processes.process_pool(n) as pool, \
+                tqdm(total=len(jobs), desc=f"{', '.join(names)} in {n} processes",
+                     disable=not progress) as done:
             futures = {pool.submit(_call, function, tuple(job)): name
                        for job, name in zip(jobs, names)}
             for future in as_completed(futures):
@@ -130,8 +127,6 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
                 try:
                     future.result()
                 except BrokenProcessPool as e:  # every unfinished job's future says so
-                    for f in futures:
-                        f.cancel()
                     left = [futures[f] for f in futures
                             if not (f.done() and not f.cancelled() and f.exception() is None)]
                     raise SeedProcessError(
@@ -140,8 +135,6 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
                         f"{n}); not done: {', '.join(left)}; what finished is kept in "
                         f"{workdir} and a run started again goes on from it") from e
                 except Exception as e:
-                    for f in futures:
-                        f.cancel()
                     e.add_note(f"({name}, in a process of its own)")
                     raise
                 log.info("%s done in its process", name)
@@ -151,10 +144,7 @@ def run_in_processes(function: str, jobs: Sequence[tuple], names: Sequence[str],
         # hour); what finished is on disk and a run started again goes on from it.
         log.warning("interrupted: stopping %d processes; what finished is kept in %s", n,
                     workdir)
-        worker_processes.terminate(pool)
         raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def evaluate_in_processes(driver: str, config: ml_collections.ConfigDict, workdir: Path,

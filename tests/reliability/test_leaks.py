@@ -51,29 +51,37 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
-def test_label_workers_exit_when_the_build_is_killed(tmp_path):
-    parent = subprocess.Popen([sys.executable, "-c", _LABEL_TWO_VIEWPOINTS, str(tmp_path)],
-                              cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    workers: list[int] = []
+def _children_exit_with_their_killed_parent(script: str, folder: Path, started, what: str):
+    """Runs ``script`` (given ``folder``), waits for ``started()`` to list the pids of its two
+    worker processes busy in their jobs, SIGKILLs it and asserts they are gone within 10 s."""
+    parent = subprocess.Popen([sys.executable, "-c", script, str(folder)], cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    children: list[int] = []
     try:
         deadline = time.monotonic() + 120
-        while len(workers) < 2 and time.monotonic() < deadline and parent.poll() is None:
+        while len(children) < 2 and time.monotonic() < deadline and parent.poll() is None:
             time.sleep(0.2)
-            workers = [int(p.name) for p in (tmp_path / "pids").glob("*")]
-        assert len(workers) == 2, "the two label workers never started their task"
+            children = started()
+        assert len(children) == 2, f"the two {what} never started their jobs"
         parent.send_signal(signal.SIGKILL)
         parent.wait()
         deadline = time.monotonic() + 10
-        while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        while any(_alive(c) for c in children) and time.monotonic() < deadline:
             time.sleep(0.2)
-        assert not [w for w in workers if _alive(w)], "label workers outlived their build"
+        assert not [c for c in children if _alive(c)], f"{what} outlived their parent"
     finally:
         if parent.poll() is None:
             parent.kill()
-        for w in workers:  # only on failure: the workers this test started, by pid
-            if _alive(w):
-                os.kill(w, signal.SIGKILL)
+        for c in children:  # only on failure: the processes this test started, by pid
+            if _alive(c):
+                os.kill(c, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_label_workers_exit_when_the_build_is_killed(tmp_path):
+    _children_exit_with_their_killed_parent(
+        _LABEL_TWO_VIEWPOINTS, tmp_path,
+        lambda: [int(p.name) for p in (tmp_path / "pids").glob("*")], "label workers")
 
 
 _TWO_SEEDS = textwrap.dedent("""
@@ -90,27 +98,10 @@ _TWO_SEEDS = textwrap.dedent("""
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
 def test_seed_processes_exit_when_their_run_is_killed(tmp_path):
     # The stand-in driver writes started<seed> (its pid) and sleeps a minute.
-    parent = subprocess.Popen([sys.executable, "-c", _TWO_SEEDS, str(tmp_path)], cwd=ROOT,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    seeds: list[int] = []
-    try:
-        deadline = time.monotonic() + 120
-        while len(seeds) < 2 and time.monotonic() < deadline and parent.poll() is None:
-            time.sleep(0.2)
-            seeds = [int(p.read_text()) for p in tmp_path.glob("started*") if p.read_text()]
-        assert len(seeds) == 2, "the two seed processes never started their seeds"
-        parent.send_signal(signal.SIGKILL)
-        parent.wait()
-        deadline = time.monotonic() + 10
-        while any(_alive(s) for s in seeds) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        assert not [s for s in seeds if _alive(s)], "seed processes outlived their run"
-    finally:
-        if parent.poll() is None:
-            parent.kill()
-        for s in seeds:  # only on failure: the processes this test started, by pid
-            if _alive(s):
-                os.kill(s, signal.SIGKILL)
+    _children_exit_with_their_killed_parent(
+        _TWO_SEEDS, tmp_path,
+        lambda: [int(p.read_text()) for p in tmp_path.glob("started*") if p.read_text()],
+        "seed processes")
 
 
 def test_a_builder_leaves_no_temporary_folder(tmp_path, monkeypatch):

@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rp_jax import categories
+from rp_jax import categories, worker_processes
 from rp_jax.sources.synthetic import write_layout
 
 __all__ = [
@@ -276,8 +276,6 @@ class RenderProcessError(RuntimeError):
 
 
 def _worker_init():
-    from rp_jax import worker_processes
-
     cv2.setNumThreads(1)
     worker_processes.exit_with_parent()  # a killed render leaves no worker rendering on
 
@@ -329,8 +327,6 @@ def _render_in_processes(todo: Sequence[FrameJob], workers: int, bar) -> None:
     """
     import concurrent.futures as cf
     from concurrent.futures.process import BrokenProcessPool
-
-    from rp_jax import worker_processes
 
     with worker_processes.process_pool(workers, initializer=_worker_init) as pool:
         futures = [pool.submit(render_job, job) for job in todo]
