@@ -377,13 +377,13 @@ def label_scale_table(results: Mapping | None) -> str:
     rows = entry.get("label_scale") or []
     if not rows:
         return "_No `label_scale` result is committed (`experiments/results/benchmark.json`)._\n"
-    # When and under what load each row was measured stays in benchmark.json and
-    # benchmark.md; the user documentation names the machine only.
-    out = ["| frames | CPU s | CPU s per frame | peak memory, MB | records | wall s | CPU |",
-           "|---|---|---|---|---|---|---|"]
+    out = ["| frames | CPU s | CPU s per frame | peak memory, MB | records | wall s | "
+           "load (1 min) | measured |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r['frames']:,} | {r['cpu_s']:,.0f} | {r['cpu_s'] / r['frames']:.3f} | "
                    f"{r['peak_rss_mb']:,.0f} | {r['records']:,} | {r['wall_s']:,.0f} | "
+                   f"{r.get('load_average_1min', float('nan')):.1f} | "
+                   f"{r.get('measured_at', '?').replace('T', ' ')} UTC, "
                    f"{r.get('cpu_model', entry.get('cpu_model', '?'))} |")
     per = [r["cpu_s"] / r["frames"] for r in rows]
     out.append("")
@@ -392,7 +392,7 @@ def label_scale_table(results: Mapping | None) -> str:
                f"{max(r['peak_rss_mb'] for r in rows):,.0f} MB. "
                f"{entry.get('ours', {}).get('variant', '')}. Run: `python -m experiments.benchmark "
                "label_scale --label-scale-frames N ...`; rows of earlier runs are kept, each "
-               "with its own machine.")
+               "with its own time, machine and load.")
     # The frames each size rendered before its labelling (a later size renders only the
     # frames the earlier ones did not), so they add up to the largest world.
     rendered = [r for r in entry.get("renders") or [] if r.get("rendered")]
