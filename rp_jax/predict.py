@@ -392,7 +392,8 @@ def load(workdir: str | os.PathLike, *, step: int | None = None,
             f"checkpoint {step} in {ckpt_dir} does not match the config in {cfg_path} "
             f"(T={schedule.num_timestamps}, model={config.model.to_dict()}): {e}"
         ) from e
-    manager.close()
+    finally:
+        manager.close()
     return Predictor(restored, config, schedule, batch_size)
 
 
