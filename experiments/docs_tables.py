@@ -662,6 +662,24 @@ def suite_times_table(data: Mapping | None) -> str:
         return rows, ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %"
                                for r in runs[1:])
 
+    def extras(record) -> list[str]:
+        out = []
+        again = record.get("repeat")  # the same pair measured again on the same machine
+        if again:
+            before = next(r for r in again["runs"] if r["suite"] == "before")["pytest_s"]
+            out += ["", f"The same pair again ({again['what']}): " + ", ".join(
+                f"{r['suite']} {r['pytest_s']:.0f} s" for r in again["runs"])
+                + ", so " + ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %"
+                                      for r in again["runs"] if r["suite"] != "before")
+                + " of the suite before."]
+        same = record.get("same_tests")  # the old suite's own tests, run on the code now
+        if same:
+            out += ["", f"The tests the suite before had, alone ({same['what']}): "
+                    f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
+                    f"{same['before_pytest_s']:.0f} s for the suite before in the same "
+                    f"script, {100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
+        return out
+
     lines, shares = table(data["runs"])
     prof = data["profile"]
     jax = prof["jax_s"]
@@ -669,17 +687,11 @@ def suite_times_table(data: Mapping | None) -> str:
               f"spent {sum(jax.values()):.0f} s of their {prof['user_s']:.0f} s of CPU making "
               f"JAX programs (tracing {jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, "
               f"XLA's compile {jax['compile']:.0f} s; the timing plugin below).", "",
-              f"Measured on {data['machine']}; {data['what']}."]
+              f"Measured on {data['machine']}; {data['what']}.", *extras(data)]
     for other in data.get("other_machines", ()):  # the same pair on another CPU kind
         rows, shares = table(other["runs"])
         lines += ["", f"On {other['machine']} ({other['what']}):", "", *rows,
-                  "", f"Pytest wall against the suite before: {shares}."]
-        same = other.get("same_tests")  # the old suite's own tests, run on the code now
-        if same:
-            lines += ["", f"The tests the suite before had, alone ({same['what']}): "
-                      f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
-                      f"{same['before_pytest_s']:.0f} s for the suite before in the same "
-                      f"script, {100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
+                  "", f"Pytest wall against the suite before: {shares}.", *extras(other)]
     return "\n".join(lines) + "\n"
 
 

@@ -377,6 +377,18 @@ def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
                             "runs": intel, "same_tests": same}]})
     assert ("The tests the suite before had, alone (the ids both collect): 8 passed in 150 s "
             "of pytest against 420 s for the suite before in the same script, 36 %.") in text
+    assert "The same pair again" not in text  # no repeat recorded
+    # The machine's own pair measured again, and its old tests alone, as for the others.
+    again = {"what": "in the other order", "runs": [
+        dict(runs[1], pytest_s=330.0), dict(runs[0], pytest_s=440.0)]}
+    text = docs_tables.suite_times_table({
+        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+        "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
+        "repeat": again, "same_tests": same})
+    assert ("Measured on AMD EPYC; fresh clones.\n\nThe same pair again (in the other order): "
+            "now 330 s, before 440 s, so now 75 % of the suite before.") in text
+    assert "8 passed in 150 s of pytest against 420 s" in text
     assert "No suite timing" in docs_tables.suite_times_table(None)
 
 
