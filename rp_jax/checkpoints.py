@@ -107,6 +107,7 @@ def params_mismatch(metadata, abstract_params, *, at_most: int = 3) -> list[str]
 
 
 def _shapes(tree) -> dict[str, tuple[int, ...]]:
-    """``{'a.b.kernel': shape}`` of a tree's leaves."""
+    """``{'a.b.kernel': shape}`` of a tree's leaves (``()`` for a leaf without a shape)."""
     return {".".join(str(getattr(k, "key", getattr(k, "idx", k))) for k in path):
-            tuple(leaf.shape) for path, leaf in jax.tree_util.tree_leaves_with_path(tree)}
+            tuple(getattr(leaf, "shape", ())) for path, leaf in
+            jax.tree_util.tree_leaves_with_path(tree)}
