@@ -60,16 +60,32 @@ def _shell(command: str, cwd: Path) -> tuple[int, str]:
     return proc.returncode, proc.stdout + proc.stderr
 
 
+def _step(command: str, folder: Path) -> tuple[int, str]:
+    """One ``$`` line, run in ``folder`` (the current directory): (exit status, output)."""
+    argv = shlex.split(command)
+    if argv[:3] == ["python", "-m", argv[2]] and argv[2].startswith("rp_jax."):
+        return _run(command)
+    return _shell(command, folder)
+
+
+@pytest.fixture(scope="module")
+def guide_run(own_data):  # noqa: F811
+    """own_data.md's ``$`` lines run once, in order, in the folder of its examples:
+    (command, lines shown, status, output) each. bad_input.md's examples run in that folder
+    after them (it says so), whichever of the two tests runs first."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(own_data)
+        return [(command, shown, *_step(command, own_data))
+                for command, shown in _steps(GUIDE)]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("doc", [GUIDE, BAD_INPUT], ids=lambda p: p.name)
-def test_the_docs_run_as_written(doc, own_data, monkeypatch):  # noqa: F811
+def test_the_docs_run_as_written(doc, own_data, guide_run, monkeypatch):  # noqa: F811
     monkeypatch.chdir(own_data)
-    for command, expected in _steps(doc):
-        argv = shlex.split(command)
-        if argv[:3] == ["python", "-m", argv[2]] and argv[2].startswith("rp_jax."):
-            status, output = _run(command)
-        else:
-            status, output = _shell(command, own_data)
+    runs = guide_run if doc == GUIDE else (
+        (command, expected, *_step(command, own_data)) for command, expected in _steps(doc))
+    for command, expected, status, output in runs:
         printed = [_masked(line) for line in output.splitlines()]
         shown = [line for line in expected if line.strip() and line.strip() != "..."]
         want = 2 if any(": error: " in line for line in shown) else 0
