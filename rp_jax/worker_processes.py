@@ -28,7 +28,8 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures.process import BrokenProcessPool
 
-__all__ = ["exit_with_parent", "POLL_SECONDS", "process_pool", "terminate"]
+__all__ = ["exit_with_parent", "POLL_SECONDS", "process_pool", "terminate",
+           "why_a_worker_died"]
 
 POLL_SECONDS = 0.5  # how often a worker looks for its parent
 
@@ -47,6 +48,14 @@ def exit_with_parent(parent: int | None = None) -> None:
         os._exit(1)  # the parent is gone: nobody reads what this worker would return
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def why_a_worker_died(workers: int) -> str:
+    """What ends a pool's worker early, for an error message: killed, out of memory, or a
+    script without a main guard (each spawned worker imports the script)."""
+    return (f"killed, or out of memory (try fewer workers than {workers}), or started from a "
+            'script that runs this when it is imported, without `if __name__ == "__main__":` '
+            "(each spawned worker imports it)")
 
 
 def terminate(pool: cf.ProcessPoolExecutor) -> None:
@@ -83,12 +92,8 @@ def process_pool(workers: int, *, initializer: Callable[[], None] = exit_with_pa
         if isinstance(e, (KeyboardInterrupt, SystemExit)):
             terminate(pool)
         elif isinstance(e, BrokenProcessPool):
-            e.add_note(
-                f"A worker process ended before it finished: killed, or out of memory (try "
-                f"fewer workers than {workers}), or started from a script that runs this "
-                'when it is imported, without `if __name__ == "__main__":` (each spawned '
-                "worker imports it). What finished is kept; a run started again goes on "
-                "from it.")
+            e.add_note(f"A worker process ended before it finished: {why_a_worker_died(workers)}. "
+                       "What finished is kept; a run started again goes on from it.")
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True)

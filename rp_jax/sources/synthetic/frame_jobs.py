@@ -338,11 +338,10 @@ def _render_in_processes(todo: Sequence[FrameJob], workers: int, bar) -> None:
             left = sum(not f.done() or f.cancelled() or f.exception() is not None
                        for f in futures)
             raise RenderProcessError(
-                f"a rendering process ended before it finished (killed, or out of memory: "
-                f"try fewer workers than {workers}; or a script that renders when it is "
-                'imported, without `if __name__ == "__main__":`, which each spawned process '
-                f"imports); {left} of {len(todo)} frames not rendered; the frames written are "
-                "kept and a run started again renders the rest") from e
+                f"a rendering process ended before it finished "
+                f"({worker_processes.why_a_worker_died(workers)}); {left} of {len(todo)} "
+                "frames not rendered; the frames written are kept and a run started again "
+                "renders the rest") from e
 
 
 # --------------------------------------------------------------------------- planner helpers
