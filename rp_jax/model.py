@@ -16,6 +16,7 @@ model composes with ``jax.jit``, ``jax.vmap`` and ``jax.grad`` in users' own cod
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import flax.linen as nn
@@ -222,13 +223,19 @@ def init_params(net: RepeatabilityPredictor, rng, num_time_features: int) -> dic
     checkpoint is restored into). Compiled as one program (the same parameters, bit for
     bit): run op by op, ``init``'s forward pass compiles every operation of every layer on
     its own; a process's first initialisation of the default model took 5.9-7.6 s of CPU
-    that way against 3.2-3.8 s, backend start included (2-core AMD EPYC).
+    that way against 3.2-3.8 s, backend start included (2-core AMD EPYC). One program per
+    network and ``d`` in a process: a second initialisation of an equal network (a resumed
+    or repeated run, another seed) reuses it instead of tracing, lowering and compiling
+    again (1.3-1.6 s of CPU each time for a small network without a compilation cache, 2-core
+    AMD EPYC; 0.01 s reused).
     """
-    def init(rng):
-        return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
-                        jnp.zeros((1, num_time_features)))["params"]
+    return _init(net, rng, num_time_features)
 
-    return jax.jit(init)(rng)
+
+@functools.partial(jax.jit, static_argnums=(0, 2))
+def _init(net: RepeatabilityPredictor, rng, num_time_features: int) -> dict:
+    return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
+                    jnp.zeros((1, num_time_features)))["params"]
 
 
 def preprocess_patches(patches: jnp.ndarray) -> jnp.ndarray:

@@ -113,3 +113,23 @@ def test_conv1_paths_agree_in_bfloat16_and_reject_unknown_paths():
     with pytest.raises(ValueError, match="conv1 path"):
         model.RepeatabilityPredictor(num_timestamps=2, conv1_path="im2col").init(
             jax.random.key(0), x, jnp.zeros((3, 2)), jnp.ones((3, 2)))
+
+
+def test_init_params_compiles_once_per_network_and_time_size():
+    def net(**kw):
+        return model.RepeatabilityPredictor(num_timestamps=5, encoder_channels=(4, 4, 8),
+                                            encoder_features=8, **kw)
+
+    first = model.init_params(net(), jax.random.key(0), 3)
+    programs = model._init._cache_size()
+    # An equal network (a new object: a resumed or repeated run) and another key: no new program.
+    again = model.init_params(net(), jax.random.key(0), 3)
+    other = model.init_params(net(), jax.random.key(1), 3)
+    assert model._init._cache_size() == programs
+    jax.tree_util.tree_map(np.testing.assert_array_equal, first, again)
+    assert not np.array_equal(first["fc6"]["kernel"], other["fc6"]["kernel"])
+    # Another network or another time size is another program, with its own shapes.
+    p = model.init_params(net(gem_init_p=2.0), jax.random.key(0), 3)["gem"]["rho"]
+    np.testing.assert_allclose(model.GeM.p_from(p), 2.0, rtol=1e-6)
+    assert model.init_params(net(), jax.random.key(0), 4)["fc1"]["kernel"].shape[0] == 8 + 2 + 4
+    assert model._init._cache_size() == programs + 2
