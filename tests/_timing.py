@@ -13,7 +13,10 @@ others share, wall time follows the load; CPU time much less so, which is why bo
 Each row also has the seconds this process spent making JAX programs in the meantime
 (``jax.monitoring``'s duration events: tracing to a jaxpr, lowering to MLIR, XLA's backend
 compile; a program read from the compilation cache costs its tracing and lowering only);
-those of the commands a test starts are not seen.
+those of the commands a test starts are not seen. At the end of the session each process
+adds one row of those seconds per program name (the function jitted: ``init``,
+``<lambda>``, ``broadcast_in_dim`` for an operation run outside ``jax.jit``), with how many
+times each was made.
 """
 
 from __future__ import annotations
@@ -53,12 +56,23 @@ _EVENTS = {"/jax/core/compile/jaxpr_trace_duration": "trace",
            "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
            "/jax/core/compile/backend_compile_duration": "compile"}
 _jax_seconds = dict.fromkeys(_EVENTS.values(), 0.0)
+# {program name: {"trace"/"lower"/"compile": seconds, "made": times lowered}}.
+_programs: dict = collections.defaultdict(lambda: {**dict.fromkeys(_EVENTS.values(), 0.0),
+                                                   "made": 0})
 
 
-def _on_duration(event: str, seconds: float, **_) -> None:
+def _program_name(fun_name: str) -> str:
+    """``jit(f)`` (how lowering and compiling name a program) and ``f`` (tracing) as one."""
+    return fun_name[4:-1] if fun_name.startswith("jit(") and fun_name.endswith(")") else fun_name
+
+
+def _on_duration(event: str, seconds: float, **kwargs) -> None:
     name = _EVENTS.get(event)
     if name is not None:
         _jax_seconds[name] += seconds
+        program = _programs[_program_name(str(kwargs.get("fun_name", "?")))]
+        program[name] += seconds
+        program["made"] += name == "lower"
 
 
 def pytest_configure(config):
@@ -100,6 +114,11 @@ def _phase(item, when):
                     **_jax_since(jx))
 
 
+def pytest_sessionfinish(session):
+    if _recorder is not None and _programs:
+        _recorder.write(kind="programs", programs=dict(_programs))
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_setup(item):
     yield from _phase(item, "setup")
@@ -129,8 +148,14 @@ def summary(folder: Path, top: int = 20) -> str:
     files: dict = collections.defaultdict(lambda: [0.0, 0.0])
     fixtures: dict = collections.defaultdict(lambda: [0.0, 0.0, 0])
     jax_by_test: dict = collections.defaultdict(lambda: dict.fromkeys(_EVENTS.values(), 0.0))
+    programs: dict = collections.defaultdict(lambda: {**dict.fromkeys(_EVENTS.values(), 0.0),
+                                                      "made": 0})
     for r in rows:
-        if r["kind"] == "test":
+        if r["kind"] == "programs":
+            for name, v in r["programs"].items():
+                for k in programs[name]:
+                    programs[name][k] += v.get(k, 0)
+        elif r["kind"] == "test":
             for table, key in ((tests, r["name"]), (files, r["file"])):
                 table[key][0] += r["wall"]
                 table[key][1] += r["cpu"]
@@ -165,6 +190,13 @@ def summary(folder: Path, top: int = 20) -> str:
     out.append(f"Top {top} tests by it: trace, lower, compile s")
     for key, v in sorted(jax_by_test.items(), key=lambda kv: -sum(kv[1].values()))[:top]:
         out.append(f"{v['trace']:8.1f} {v['lower']:8.1f} {v['compile']:8.1f}  {key}")
+    if programs:
+        out.append(f"\nTop {top} programs by it, summed over the processes: times made (lowered "
+                   "and compiled, or read from the cache), trace, lower, compile s")
+        spent = {k: sum(v[e] for e in _EVENTS.values()) for k, v in programs.items()}
+        for key, v in sorted(programs.items(), key=lambda kv: -spent[kv[0]])[:top]:
+            out.append(f"{v['made']:6d} {v['trace']:8.1f} {v['lower']:8.1f} "
+                       f"{v['compile']:8.1f}  {key}")
     return "\n".join(out)
 
 

@@ -37,11 +37,41 @@ def test_summary_sums_each_tests_phases_and_its_jax_programs(tmp_path):
                       "     0.0      0.0      0.0  tests/test_b.py::test_two"]
 
 
-def test_the_listener_adds_only_the_compile_events():
+def test_the_listener_adds_only_the_compile_events(monkeypatch):
+    monkeypatch.setattr(_timing, "_programs", type(_timing._programs)(
+        _timing._programs.default_factory))
     before = dict(_timing._jax_seconds)
-    _timing._on_duration("/jax/core/compile/backend_compile_duration", 1.5)
-    _timing._on_duration("/jax/some/other_duration", 7.0)
+    _timing._on_duration("/jax/core/compile/backend_compile_duration", 1.5, fun_name="jit(f)")
+    _timing._on_duration("/jax/some/other_duration", 7.0, fun_name="jit(f)")
     assert _timing._jax_since(before) == {"trace": 0.0, "lower": 0.0, "compile": 1.5}
+    # Per program: tracing names the function, lowering and compiling jit(function).
+    _timing._on_duration("/jax/core/compile/jaxpr_trace_duration", 0.25, fun_name="f")
+    _timing._on_duration("/jax/core/compile/jaxpr_to_mlir_module_duration", 0.5,
+                         fun_name="jit(f)")
+    _timing._on_duration("/jax/core/compile/jaxpr_to_mlir_module_duration", 0.5,
+                         fun_name="jit(<lambda>)")
+    assert dict(_timing._programs) == {
+        "f": {"trace": 0.25, "lower": 0.5, "compile": 1.5, "made": 1},
+        "<lambda>": {"trace": 0.0, "lower": 0.5, "compile": 0.0, "made": 1}}
+
+
+def test_summary_ranks_the_programs_of_every_process(tmp_path):
+    folder = tmp_path / "times"
+    folder.mkdir()
+    made = {"gw0-1": {"init": {"trace": 0.5, "lower": 1.0, "compile": 2.0, "made": 2},
+                      "add": {"trace": 0.0, "lower": 0.25, "compile": 0.25, "made": 3}},
+            "gw1-2": {"init": {"trace": 0.25, "lower": 0.5, "compile": 1.0, "made": 1}}}
+    for process, programs in made.items():
+        (folder / f"{process}.jsonl").write_text(
+            json.dumps({"kind": "test", "name": "t::x", "when": "call", "file": "t",
+                        "wall": 1.0, "cpu": 1.0}) + "\n"
+            + json.dumps({"kind": "programs", "programs": programs}) + "\n")
+    lines = _timing.summary(folder, top=2).splitlines()
+    ranked = lines[lines.index("Top 2 programs by it, summed over the processes: times made "
+                               "(lowered and compiled, or read from the cache), trace, lower, "
+                               "compile s") + 1:]
+    assert ranked == ["     3      0.8      1.5      3.0  init",
+                      "     3      0.0      0.2      0.2  add"]
 
 
 def test_each_process_span_and_its_idle_end(tmp_path):
