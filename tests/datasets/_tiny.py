@@ -11,6 +11,7 @@ built datasets instead of each rendering and labelling the same tiny world again
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -36,8 +37,41 @@ def build_tiny(name: str, data_dir: Path, **kwargs):
     # Two workers building one dataset in one data dir at once would write the same files.
     with _session_cache.locked(data_dir.parent / f".build-{name}.lock"):
         b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
-        b.download_and_prepare()
+        built_before = b.is_prepared()
+        b.download_and_prepare()  # a no-op where built (tests/datasets/test_builders.py)
+        if not built_before:
+            _built_record(data_dir, name).write_text(json.dumps(_files_of(data_dir, name)))
     return b
+
+
+def _built_record(data_dir: Path, name: str) -> Path:
+    return data_dir.parent / f".built-{name}.json"
+
+
+def _files_of(data_dir: Path, name: str) -> dict[str, list[int]]:
+    """{file: [size, mtime_ns]} of what ``tiny_data_copy`` copies of ``name``'s build."""
+    roots = (data_dir / name, data_dir / "downloads" / "groundtruth" / name / TINY,
+             data_dir.parent / "synthetic" / f"{name}_tiny")
+    return {str(p.relative_to(data_dir.parent)): [p.stat().st_size, p.stat().st_mtime_ns]
+            for root in roots for p in sorted(root.rglob("*"))
+            if p.is_file() and not p.name.endswith(".lock")}
+
+
+def _unchanged_since_built(data_dir: Path, name: str) -> None:
+    """Fail, naming the files, if ``name``'s build in ``data_dir`` changed after it was built.
+
+    The session's builds are shared: a test that writes into one (say, computes outcomes,
+    which writes the label cache again) changes what every later test copies, and races a
+    copy in another worker. It must work on ``tiny_data_copy``'s copy instead.
+    """
+    record = _built_record(data_dir, name)
+    if not record.exists():  # built by an earlier session's code: nothing to compare
+        return
+    before, now = json.loads(record.read_text()), _files_of(data_dir, name)
+    changed = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
+    assert not changed, (f"the session's tiny {name} build in {data_dir} changed after it was "
+                         f"built ({len(changed)} files: {', '.join(changed[:4])}): a test wrote "
+                         "into it instead of into a copy (tiny_data_copy)")
 
 
 def tiny_data_copy(tmp_path_factory, names: Sequence[str], dest: Path) -> Path:
@@ -57,6 +91,7 @@ def tiny_data_copy(tmp_path_factory, names: Sequence[str], dest: Path) -> Path:
     for name in names:
         build_tiny(name, shared)
         with _session_cache.locked(shared.parent / f".build-{name}.lock"):
+            _unchanged_since_built(shared, name)
             for rel in (Path(name), Path("downloads") / "groundtruth" / name / TINY):
                 shutil.copytree(shared / rel, data_dir / rel,
                                 ignore=shutil.ignore_patterns("*.lock"))

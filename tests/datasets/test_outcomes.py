@@ -14,12 +14,17 @@ from rp_jax.groundtruth import labels as labels_lib
 from rp_jax.schedule import preset
 from rp_jax.sources import images
 from rp_jax.sources.capture import Camera, Capture
-from tests.datasets._tiny import TINY, build_tiny, shared_data_dir
+from tests.datasets._tiny import TINY, build_tiny, tiny_data_copy
 
 
 @pytest.fixture(scope="module")
 def webcam(tmp_path_factory):
-    return build_tiny("webcam_clipart", shared_data_dir(tmp_path_factory))
+    # A copy of the session's tiny build: the outcomes are not in its label cache, so
+    # computing them matches each viewpoint again and writes its labels anew, which in the
+    # shared build raced another worker copying it (a temporary file listed, then renamed).
+    data_dir = tiny_data_copy(tmp_path_factory, ["webcam_clipart"],
+                              tmp_path_factory.mktemp("outcomes"))
+    return build_tiny("webcam_clipart", data_dir)
 
 
 def test_sidecar_joins_every_record_and_averages_into_its_label(webcam, capsys):
