@@ -226,7 +226,7 @@ def init_params(net: RepeatabilityPredictor, rng, num_time_features: int) -> dic
     that way against 3.2-3.8 s, backend start included (2-core AMD EPYC). One program per
     network and ``d`` in a process: a second initialisation of an equal network (a resumed
     or repeated run, another seed) reuses it instead of tracing, lowering and compiling
-    again (1.3-1.6 s of CPU each time for a small network without a compilation cache, 2-core
+    again (1.3-1.5 s of CPU each time for a small network without a compilation cache, 2-core
     AMD EPYC; 0.01 s reused).
     """
     return _init(net, rng, num_time_features)
