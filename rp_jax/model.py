@@ -227,15 +227,22 @@ def init_params(net: RepeatabilityPredictor, rng, num_time_features: int) -> dic
     network and ``d`` in a process: a second initialisation of an equal network (a resumed
     or repeated run, another seed) reuses it instead of tracing, lowering and compiling
     again (1.3-1.5 s of CPU each time for a small network without a compilation cache, 2-core
-    AMD EPYC; 0.01 s reused).
+    AMD EPYC; 0.01 s reused). A network that cannot be hashed (an attribute given as a
+    list) is compiled for the call alone.
     """
+    try:
+        hash(net)
+    except TypeError:
+        return jax.jit(functools.partial(_init_fn, net, num_time_features=num_time_features))(rng)
     return _init(net, rng, num_time_features)
 
 
-@functools.partial(jax.jit, static_argnums=(0, 2))
-def _init(net: RepeatabilityPredictor, rng, num_time_features: int) -> dict:
+def _init_fn(net: RepeatabilityPredictor, rng, num_time_features: int) -> dict:
     return net.init(rng, jnp.zeros((1, 64, 64, 3)), jnp.zeros((1, 2)),
                     jnp.zeros((1, num_time_features)))["params"]
+
+
+_init = jax.jit(_init_fn, static_argnums=(0, 2))
 
 
 def preprocess_patches(patches: jnp.ndarray) -> jnp.ndarray:

@@ -133,3 +133,8 @@ def test_init_params_compiles_once_per_network_and_time_size():
     np.testing.assert_allclose(model.GeM.p_from(p), 2.0, rtol=1e-6)
     assert model.init_params(net(), jax.random.key(0), 4)["fc1"]["kernel"].shape[0] == 8 + 2 + 4
     assert model._init._cache_size() == programs + 2
+    # A network that cannot be hashed (channels as a list) still initialises, the same.
+    listed = model.RepeatabilityPredictor(num_timestamps=5, encoder_channels=[4, 4, 8],
+                                          encoder_features=8)
+    jax.tree_util.tree_map(np.testing.assert_array_equal,
+                           model.init_params(listed, jax.random.key(0), 3), first)
