@@ -3,7 +3,8 @@
 ``shared_data_dir`` is one TFDS data dir for the whole test session, seen by every xdist
 worker: each tiny world is rendered and each tiny dataset built there once, by the first
 test that asks (``build_tiny`` holds a lock per dataset while it builds, so a second worker
-waits and then finds the build done). Tests read it and copy what they change:
+waits and then finds the build done). Tests read it and copy what they change (a copy of
+a build that changed after it was built fails, naming the files):
 ``tiny_data_copy`` gives a test a data dir of its own holding copies of the session's tiny
 builds (and their worlds), so the end-to-end runs of the experiments and notebooks read
 built datasets instead of each rendering and labelling the same tiny world again.
@@ -65,7 +66,7 @@ def _unchanged_since_built(data_dir: Path, name: str) -> None:
     copy in another worker. It must work on ``tiny_data_copy``'s copy instead.
     """
     record = _built_record(data_dir, name)
-    if not record.exists():  # built by an earlier session's code: nothing to compare
+    if not record.exists():  # not built by build_tiny: nothing to compare with
         return
     before, now = json.loads(record.read_text()), _files_of(data_dir, name)
     changed = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))

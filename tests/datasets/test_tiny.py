@@ -31,7 +31,7 @@ def test_a_build_changed_after_it_was_built_is_named(tmp_path):
         _tiny._unchanged_since_built(data_dir, "webcam_clipart")
 
 
-def test_a_build_of_another_session_is_not_judged(tmp_path):
+def test_a_build_without_a_record_is_not_judged(tmp_path):
     data_dir = tmp_path / "tfds"
     _fake_build(data_dir, "robotcar")
     _tiny._built_record(data_dir, "robotcar").unlink()
