@@ -53,9 +53,10 @@ def _files_of(data_dir: Path, name: str) -> dict[str, list[int]]:
     """{file: [size, mtime_ns]} of what ``tiny_data_copy`` copies of ``name``'s build."""
     roots = (data_dir / name, data_dir / "downloads" / "groundtruth" / name / TINY,
              data_dir.parent / "synthetic" / f"{name}_tiny")
-    return {str(p.relative_to(data_dir.parent)): [p.stat().st_size, p.stat().st_mtime_ns]
-            for root in roots for p in sorted(root.rglob("*"))
-            if p.is_file() and not p.name.endswith(".lock")}
+    files = (p for root in roots for p in sorted(root.rglob("*"))
+             if p.is_file() and not p.name.endswith(".lock"))
+    return {str(p.relative_to(data_dir.parent)): [(st := p.stat()).st_size, st.st_mtime_ns]
+            for p in files}
 
 
 def _unchanged_since_built(data_dir: Path, name: str) -> None:
