@@ -29,13 +29,18 @@ import jax
 import numpy as np
 from jax.sharding import Mesh
 
-__all__ = ["configure_cpu", "make_mesh", "tune_malloc", "YNN_FLAG"]
+__all__ = ["configure_cpu", "make_mesh", "malloc_tunables", "tune_malloc", "YNN_FLAG"]
 
 YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type=dot,eltwise,reduce"
 
 
-# glibc's mallopt parameters (malloc.h).
-_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_MAX = -1, -2, -4
+# tune_malloc's settings: glibc's mallopt parameter (malloc.h), the same setting's name in
+# GLIBC_TUNABLES (glibc's manual, "Memory Allocation Tunables"), and its value.
+_MALLOC_SETTINGS = (
+    (-4, "glibc.malloc.mmap_max", 0),  # M_MMAP_MAX
+    (-1, "glibc.malloc.trim_threshold", 2**31 - 1),  # M_TRIM_THRESHOLD
+    (-2, "glibc.malloc.top_pad", 64 << 20),  # M_TOP_PAD
+)
 
 
 def tune_malloc() -> bool:
@@ -45,6 +50,7 @@ def tune_malloc() -> bool:
     the heap's top is not trimmed back to the OS (``M_TRIM_THRESHOLD``) and grows 64 MB at
     a time (``M_TOP_PAD``). The numbers computed do not change; the process keeps its peak
     heap size until it exits. Safe to call at any time (it affects later allocations).
+    ``malloc_tunables`` gives the same settings to processes yet to start.
 
     Returns:
       True if applied; False where the C library is not glibc (nothing is changed).
@@ -52,8 +58,21 @@ def tune_malloc() -> bool:
     if _platform.system() != "Linux" or _platform.libc_ver()[0] != "glibc":
         return False
     libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-    return all(libc.mallopt(param, value) == 1 for param, value in (
-        (_M_MMAP_MAX, 0), (_M_TRIM_THRESHOLD, 2**31 - 1), (_M_TOP_PAD, 64 << 20)))
+    return all(libc.mallopt(param, value) == 1 for param, _, value in _MALLOC_SETTINGS)
+
+
+def malloc_tunables(current: str = "") -> str:
+    """``GLIBC_TUNABLES`` that starts a process with ``tune_malloc``'s settings (pure).
+
+    glibc reads the variable once, as a process starts, so a parent sets it in the
+    environment its children inherit. ``current`` is the variable's value as it is (a
+    colon-separated list of ``name=value``): its entries are kept, and where it already
+    names one of these settings its own value stays.
+    """
+    entries = [e for e in current.split(":") if e]
+    named = {e.split("=", 1)[0] for e in entries}
+    entries += [f"{name}={value}" for _, name, value in _MALLOC_SETTINGS if name not in named]
+    return ":".join(entries)
 
 
 def configure_cpu(

@@ -17,6 +17,14 @@ without, the same 72 passed; on ``tests/test_model.py``, ``test_predict.py`` and
 CPU against 52-60 s. The whole suite passes either way (docs/testing.md).
 ``RP_JAX_TEST_XLA_OPTIMIZE=1`` compiles as the commands do; the commands the tests start
 inherit the setting.
+
+glibc's malloc keeps the memory it frees (``rp_jax.platform.tune_malloc``, which the
+experiments' commands apply too) in this process and, through ``GLIBC_TUNABLES``, in every
+process it starts: the xdist workers, the commands and the rendering and labelling workers.
+By default glibc returns each freed block above 32 MB to the system and page-faults the
+next one in again, at every training step and image. The numbers computed do not change;
+each process keeps its peak heap until it exits. ``RP_JAX_TEST_MALLOC=default`` keeps
+glibc's defaults.
 """
 
 import os
@@ -35,6 +43,12 @@ if os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "
     os.environ["XLA_FLAGS"] = " ".join([*_flags, *(f for f in _QUICK_COMPILE
                                                    if f not in _flags)])
 os.environ.setdefault("RP_JAX_NO_CPU_SETUP", "1")  # entry points called in tests keep this set-up
+
+if os.environ.get("RP_JAX_TEST_MALLOC", "").strip().lower() != "default":
+    from rp_jax import platform  # noqa: E402
+
+    os.environ["GLIBC_TUNABLES"] = platform.malloc_tunables(os.environ.get("GLIBC_TUNABLES", ""))
+    platform.tune_malloc()
 
 import chex  # noqa: E402
 

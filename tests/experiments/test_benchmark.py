@@ -417,7 +417,7 @@ def test_layer_profile_benches_and_table():
 
 def test_tune_malloc_in_a_fresh_process():
     """configure_cpu's allocator setting applies (glibc) and leaves results unchanged; in a
-    subprocess, so that this test process keeps glibc's defaults."""
+    subprocess started with glibc's defaults (without the suite's GLIBC_TUNABLES)."""
     import os
     import platform as host
     import subprocess
@@ -427,5 +427,6 @@ def test_tune_malloc_in_a_fresh_process():
             "a = np.arange(50_000_000, dtype=np.float32).sum(); ok = platform.tune_malloc(); "
             "b = np.arange(50_000_000, dtype=np.float32).sum(); print(ok, a == b)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, env={**os.environ, "JAX_PLATFORMS": "cpu"})
+                         check=True, env={**{k: v for k, v in os.environ.items()
+                                             if k != "GLIBC_TUNABLES"}, "JAX_PLATFORMS": "cpu"})
     assert out.stdout.split() == [str(host.libc_ver()[0] == "glibc"), "True"]
