@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 import json
 import os
 from collections.abc import Sequence
@@ -29,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-from jax.sharding import NamedSharding
+from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
 from rp_jax import checkpoints, time_encoding
@@ -220,6 +221,23 @@ def at_time(scores, schedule: schedule_lib.TimeSchedule,
     return out[..., 0] if len(whens) == 1 else out
 
 
+@functools.lru_cache(maxsize=16)
+def _compiled_repeatability(model_json: str, mesh: Mesh):
+    """``repeatability`` jitted for a ``config.model`` (as JSON) and a mesh, the batch split
+    over the mesh and the parameters replicated.
+
+    One function per model config and mesh in a process, shared by every ``Predictor`` of
+    that model: ``jax.jit`` keeps its programs with the function it jits, so a function of
+    each predictor's own traced, lowered and compiled (or read from JAX's cache) the same
+    program again for each predictor loaded. ``repeatability`` reads only the ``model``
+    group, and the function holds that group alone.
+    """
+    config = ml_collections.ConfigDict({"model": json.loads(model_json)})
+    data, replicated = NamedSharding(mesh, P("data")), NamedSharding(mesh, P())
+    return jax.jit(lambda p, x, xy, t: repeatability(p, x, xy, t, config=config),
+                   in_shardings=(replicated, data, data, data), out_shardings=data)
+
+
 @dataclasses.dataclass
 class Predictor:
     """A trained predictor: call it on numpy arrays.
@@ -242,10 +260,8 @@ class Predictor:
         mesh = make_mesh(0)
         n_dev = mesh.devices.size
         self.batch_size = -(-self.batch_size // n_dev) * n_dev  # a multiple of the devices
-        data, replicated = NamedSharding(mesh, P("data")), NamedSharding(mesh, P())
-        self._device_params = jax.device_put(self.params, replicated)
-        self._fn = jax.jit(lambda p, x, xy, t: repeatability(p, x, xy, t, config=self.config),
-                           in_shardings=(replicated, data, data, data), out_shardings=data)
+        self._device_params = jax.device_put(self.params, NamedSharding(mesh, P()))
+        self._fn = _compiled_repeatability(self.config.model.to_json(sort_keys=True), mesh)
 
     @property
     def num_timestamps(self) -> int:

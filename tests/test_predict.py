@@ -45,6 +45,26 @@ def test_load_and_call(workdir):
     np.testing.assert_allclose(np.asarray(pure), out, atol=1e-5)
 
 
+def test_predictors_of_one_model_share_its_program(workdir):
+    """Every predictor of a model config calls one jitted function (one program per batch
+    shape in a process), with the same outputs as a function of its own; another model
+    config has its own."""
+    patches, xy, times = _inputs(5)
+    first, second = predict.load(workdir), predict.load(workdir)
+    assert second._fn is first._fn
+    out = first(patches, xy, times)
+    n_programs = first._fn._cache_size()
+    np.testing.assert_array_equal(second(patches, xy, times), out)
+    assert first._fn._cache_size() == n_programs
+    predict._compiled_repeatability.cache_clear()
+    own = predict.load(workdir)
+    assert own._fn is not first._fn
+    np.testing.assert_array_equal(own(patches, xy, times), out)
+    wider = own.config.copy_and_resolve_references()
+    wider.model.encoder_features = 48
+    assert predict.Predictor(own.params, wider, own.schedule)._fn is not own._fn
+
+
 def test_repeatability_under_jit_vmap_grad(workdir):
     rp = predict.load(workdir)
     p = jnp.full((3, 64, 64, 3), 0.5)
