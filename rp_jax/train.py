@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import json
 import logging
 import os
@@ -235,16 +236,24 @@ def _learning_rate_schedule(config, steps_per_epoch: int):
     return optax.warmup_cosine_decay_schedule(0.0, t.learning_rate, warmup, total)
 
 
-def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -> TrainState:
-    """Initialised parameters and AdamW (with clipping and a warm-up cosine schedule)."""
-    net = create_model(config, num_timestamps)
-    params = model_lib.init_params(net, rng, time_encoding.num_features(config.model.time_fields))
-    tx = optax.chain(
+def _optimizer(config, steps_per_epoch: int) -> optax.GradientTransformation:
+    """AdamW with global-norm clipping and a warm-up cosine schedule."""
+    return optax.chain(
         optax.clip_by_global_norm(config.train.grad_clip),
         optax.adamw(_learning_rate_schedule(config, steps_per_epoch),
                     weight_decay=config.train.weight_decay),
     )
+
+
+def _initial_state(config, net, tx: optax.GradientTransformation, rng) -> TrainState:
+    params = model_lib.init_params(net, rng, time_encoding.num_features(config.model.time_fields))
     return TrainState.create(apply_fn=net.apply, params=params, tx=tx)
+
+
+def create_train_state(config, num_timestamps: int, steps_per_epoch: int, rng) -> TrainState:
+    """Initialised parameters and AdamW (with clipping and a warm-up cosine schedule)."""
+    return _initial_state(config, create_model(config, num_timestamps),
+                          _optimizer(config, steps_per_epoch), rng)
 
 
 def augment_patches(patches: jnp.ndarray, rng, *, brightness: float, contrast: float,
@@ -349,6 +358,40 @@ def _compile(config, mesh: Mesh, apply_fn) -> _Compiled:
         out_shardings=replicated,
     )
     return _Compiled(train, evaluate_fn, data, replicated)
+
+
+# All that the network, the optimizer and the train and eval steps read of a config.
+STEP_FIELDS = ("seed", "model", "input.augment", "train.num_epochs", "train.learning_rate",
+               "train.warmup_epochs", "train.weight_decay", "train.grad_clip")
+
+
+def step_fields(config) -> str:
+    """``STEP_FIELDS`` of ``config`` as JSON (sorted keys): the key of ``_run_steps``."""
+    out: dict = {}
+    for dotted in STEP_FIELDS:
+        *groups, name = dotted.split(".")
+        node = out
+        for group in groups:
+            node = node.setdefault(group, {})
+        value = field_value(config, dotted)
+        node[name] = value.to_dict() if hasattr(value, "to_dict") else value
+    return json.dumps(out, sort_keys=True)
+
+
+@functools.lru_cache(maxsize=8)
+def _run_steps(fields_json: str, num_timestamps: int, steps_per_epoch: int, mesh: Mesh):
+    """The network, optimizer and jitted steps of a run: (net, tx, ``_Compiled``).
+
+    One set per ``step_fields`` JSON, T, steps per epoch and mesh in a process, shared by
+    the runs that agree on them (a resumed run, the same model on other data): ``jax.jit``
+    keeps its programs with the function it jits, and the train state's network and
+    optimizer are part of what a program is looked up by, so a run with steps, network and
+    optimizer of its own traced, lowered and compiled (or read from JAX's cache) the same
+    programs again. The steps see a config of ``STEP_FIELDS`` alone.
+    """
+    config = ml_collections.ConfigDict(json.loads(fields_json))
+    net = create_model(config, num_timestamps)
+    return net, _optimizer(config, steps_per_epoch), _compile(config, mesh, net.apply)
 
 
 def evaluate(params, source, compiled: _Compiled, batch_size: int) -> dict[str, float]:
@@ -572,8 +615,8 @@ def _train_and_evaluate(
 
     check_workdir(workdir, config)
     write_run_files(workdir, config, schedule)
-    state = create_train_state(config, T, steps_per_epoch, jax.random.key(config.seed))
-    compiled = _compile(config, mesh, state.apply_fn)
+    net, tx, compiled = _run_steps(step_fields(config), T, steps_per_epoch, mesh)
+    state = _initial_state(config, net, tx, jax.random.key(config.seed))
     manager = checkpoints.writer(workdir / checkpoints.CHECKPOINTS_DIR,
                                  config.train.max_checkpoints_to_keep)
     start_epoch = 0

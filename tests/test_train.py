@@ -1,6 +1,8 @@
 """Tests of rp_jax.train: one compilation, learning, resume, data parallelism."""
 
 
+import json
+
 import chex
 import jax
 import numpy as np
@@ -113,6 +115,47 @@ def test_resume_equals_uninterrupted(tmp_path):
                                 train.params_to_numpy(full.params), atol=1e-6)
     epochs = (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()
     assert len(epochs) == 3
+
+
+def test_runs_that_agree_on_the_step_fields_share_their_programs(tmp_path):
+    """A second run of the same model (another workdir, other data, other runtime fields)
+    reuses the first's network, optimizer and jitted steps, and ends with the parameters
+    that steps of its own give; another learning rate gets steps of its own."""
+    config = small_config(num_epochs=1)
+    src, val = task(64, 0), task(32, 1)
+    train._run_steps.cache_clear()
+    train.train_and_evaluate(config, tmp_path / "a", src, val, progress=False)
+    assert train._run_steps.cache_info().misses == 1
+    other_data = small_config(num_epochs=1, eval_batch_size=32)
+    other_data.input.data_dir = str(tmp_path / "elsewhere")
+    shared = train.train_and_evaluate(other_data, tmp_path / "b", task(64, 2), val,
+                                      progress=False)
+    assert train._run_steps.cache_info()[:2] == (1, 1)  # (hits, misses)
+    # One program each for both runs: the state's network and optimizer were the same.
+    _, _, compiled = train._run_steps(train.step_fields(config), SCHEDULE.num_timestamps,
+                                      ip.num_train_steps(64, 32), train.check_devices(config))
+    assert compiled.train._cache_size() == 1
+    train._run_steps.cache_clear()
+    own = train.train_and_evaluate(other_data, tmp_path / "c", task(64, 2), val, progress=False)
+    chex.assert_trees_all_equal(train.params_to_numpy(shared.params),
+                                train.params_to_numpy(own.params))
+    train.train_and_evaluate(small_config(num_epochs=1, learning_rate=1e-3), tmp_path / "d",
+                             src, val, progress=False)
+    assert train._run_steps.cache_info()[:2] == (0, 2)
+
+
+def test_the_steps_see_the_step_fields_alone():
+    config = small_config()
+    fields = json.loads(train.step_fields(config))
+    assert sorted(fields) == ["input", "model", "seed", "train"]
+    assert fields["input"] == {"augment": config.input.augment.to_dict()}
+    assert set(fields["train"]) == {f.split(".")[1] for f in train.STEP_FIELDS
+                                    if f.startswith("train.")}
+    config.input.data_dir = "/elsewhere"
+    config.eval.batch_size = 8
+    assert json.loads(train.step_fields(config)) == fields
+    config.input.augment.flip = not config.input.augment.flip
+    assert json.loads(train.step_fields(config)) != fields
 
 
 def test_refuses_a_workdir_of_another_config(tmp_path):
