@@ -8,6 +8,9 @@ a build that changed after it was built fails, naming the files):
 ``tiny_data_copy`` gives a test a data dir of its own holding copies of the session's tiny
 builds (and their worlds), so the end-to-end runs of the experiments and notebooks read
 built datasets instead of each rendering and labelling the same tiny world again.
+``tiny_world`` and ``tiny_world_copy`` do the same for a tiny world alone (a layout the
+map-summarization commands or the readers' tests read): rendered once, where the session's
+build of that preset would render it.
 """
 
 from __future__ import annotations
@@ -100,6 +103,30 @@ def tiny_data_copy(tmp_path_factory, names: Sequence[str], dest: Path) -> Path:
             world = Path("synthetic") / f"{name}_tiny"
             shutil.copytree(shared.parent / world, Path(dest) / world)
     return data_dir
+
+
+def tiny_world(tmp_path_factory, name: str, seed: int = 0) -> Path:
+    """The session's tiny synthetic world of the preset ``name`` and ``seed``, rendered once
+    (in this process, by the first test that asks) where the session's tiny build of
+    ``name`` renders and reads it, beside ``shared_data_dir``. Read it; copy what you change
+    (``tiny_world_copy``)."""
+    from rp_jax.datasets import builder
+
+    shared = shared_data_dir(tmp_path_factory)
+    root = builder.synthetic_root(shared, name, "tiny", seed)
+    with _session_cache.locked(shared.parent / f".build-{name}.lock"):  # build_tiny's lock
+        builder.ensure_synthetic(name, root, size="tiny", seed=seed, workers=1)
+    return root
+
+
+def tiny_world_copy(tmp_path_factory, name: str, dest: Path, seed: int = 0) -> Path:
+    """A copy of ``tiny_world`` in ``dest`` (a folder not there yet), for a test or command
+    that may write into it: ``builder.synthetic_root(data_dir, name, "tiny", seed)`` of the
+    data dir a command is given, for the command to find it rendered."""
+    world = tiny_world(tmp_path_factory, name, seed)
+    with _session_cache.locked(shared_data_dir(tmp_path_factory).parent / f".build-{name}.lock"):
+        shutil.copytree(world, dest, ignore=shutil.ignore_patterns("*.lock"))
+    return Path(dest)
 
 
 def all_records(b, split: str) -> list[dict]:

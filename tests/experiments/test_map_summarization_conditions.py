@@ -6,9 +6,10 @@ import pytest
 
 from experiments.map_summarization import conditions as mc
 from experiments.map_summarization import conditions_report as mcr
+from rp_jax.datasets import builder
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
-from tests.datasets._tiny import tiny_data_copy
+from tests.datasets._tiny import tiny_data_copy, tiny_world_copy
 
 RATIOS = ("0.5", "0.9")
 
@@ -20,6 +21,11 @@ def tiny(tmp_path_factory):
     workdir = tmp / "run"
     # The session's tiny whole-day RobotCar build (the rp_paper row's RP learns on it).
     data_dir = tiny_data_copy(tmp_path_factory, ["robotcar_day"], tmp / "data")
+    # The session's tiny worlds where the command looks for them: the evaluated one (seed 0)
+    # and the outcome scorers' label world (seed 1), rendered once in the session.
+    for seed in (0, 1):
+        tiny_world_copy(tmp_path_factory, "robotcar_seasons",
+                        builder.synthetic_root(data_dir, "robotcar_seasons", "tiny", seed), seed)
     code = mc.main(["--size", "tiny", "--seeds", "0", "--workdir", str(workdir), "--quiet",
                     "--data-dir", str(data_dir),
                     f"--config.map.ratios=({','.join(RATIOS)})",

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from experiments.map_summarization import night_factors as nf
+from rp_jax.datasets import builder
 from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.layout import LayoutError
+from tests.datasets._tiny import tiny_world_copy
 
 
 @pytest.fixture(scope="module")
@@ -17,6 +19,9 @@ def tiny(tmp_path_factory):
     """The command on the tiny world (its night traversal only), three frames."""
     tmp = tmp_path_factory.mktemp("night_factors")
     workdir = tmp / "run"
+    # The session's tiny world (rendered once) where the command looks for it.
+    tiny_world_copy(tmp_path_factory, "robotcar_seasons",
+                    builder.synthetic_root(tmp / "data", "robotcar_seasons", "tiny", 0))
     code = nf.main(["--size", "tiny", "--frames", "3", "--workdir", str(workdir), "--quiet",
                     "--data-dir", str(tmp / "data")])
     assert code == 0

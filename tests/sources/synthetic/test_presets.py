@@ -27,6 +27,7 @@ from rp_jax import categories, sun
 from rp_jax.schedule import preset as schedule_preset
 from rp_jax.sources.synthetic import frame_jobs, presets, write_layout
 from rp_jax.sources.synthetic.route import rotation_ned
+from tests.datasets._tiny import tiny_world_copy
 
 # --------------------------------------------------------------------------- a tiny exact world
 
@@ -459,10 +460,9 @@ def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_real_renderer_cmu_model_and_query_poses(tmp_path):
-    out = presets.generate(
-        "cmu_seasons", tmp_path / "cmu", size="tiny", seed=0, workers=1, progress=False
-    )
+def test_real_renderer_cmu_model_and_query_poses(tmp_path_factory, tmp_path):
+    # presets.generate's tiny world, rendered once in the session (the tiny build's).
+    out = tiny_world_copy(tmp_path_factory, "cmu_seasons", tmp_path / "cmu")
     cams = _read_intrinsics(out / "intrinsics.txt")
     name_re = re.compile(r"img_(\d+)_(c0|c1)_(\d+)us\.jpg")
     for slice_id in (6, 8):

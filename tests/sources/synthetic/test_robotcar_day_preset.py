@@ -10,6 +10,7 @@ from rp_jax.schedule import preset
 from rp_jax.sources import robotcar
 from rp_jax.sources.synthetic import camera_effects, photometry, presets
 from rp_jax.sources.synthetic.plan_robotcar import day_traversals
+from tests.datasets._tiny import tiny_world_copy
 
 LONDON = ZoneInfo("Europe/London")
 
@@ -53,9 +54,9 @@ def test_the_stereo_camera_exposes_at_most_one_frame_of_16_hz():
     assert camera_effects.sensor_named(xb3.name) is xb3
 
 
-def test_read_day_puts_each_image_in_the_slot_of_its_local_hour(tmp_path):
-    root = presets.generate("robotcar_day", tmp_path / "rcd", size="tiny", seed=0, workers=1,
-                            progress=False)
+def test_read_day_puts_each_image_in_the_slot_of_its_local_hour(tmp_path_factory, tmp_path):
+    # presets.generate's tiny world, rendered once in the session (the tiny build's).
+    root = tiny_world_copy(tmp_path_factory, "robotcar_day", tmp_path / "rcd")
     caps = robotcar.read_day(root)
     schedule = preset("robotcar_day")
     assert len(caps) == 8 and {c.viewpoint for c in caps} == {"vp00", "vp01"}

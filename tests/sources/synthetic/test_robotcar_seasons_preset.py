@@ -14,6 +14,7 @@ from rp_jax.sources import robotcar_seasons as rcs
 from rp_jax.sources.synthetic import condition_sheet, presets
 from rp_jax.sources.synthetic import plan_robotcar_seasons as plan_rcs
 from rp_jax.sources.synthetic.plan_robotcar import ROBOTCAR_LOCATION
+from tests.datasets._tiny import tiny_world_copy
 
 CONDITIONS = {"overcast-reference", "dusk", "night", "rain"}  # the tiny size's
 POSITIONS = 3
@@ -21,9 +22,9 @@ POSITIONS = 3
 
 @pytest.fixture(scope="module")
 def layout(tmp_path_factory):
-    root = tmp_path_factory.mktemp("rcs") / "robotcar_seasons"
-    presets.generate("robotcar_seasons", root, size="tiny", seed=0, workers=1, progress=False)
-    return root
+    """The session's tiny world (``presets.generate``'s, rendered once), a copy of it."""
+    return tiny_world_copy(tmp_path_factory, "robotcar_seasons",
+                           tmp_path_factory.mktemp("rcs") / "robotcar_seasons")
 
 
 def test_the_reader_reads_every_condition_and_camera_at_the_traversals_instants(layout):
