@@ -14,6 +14,8 @@ returns it at ``free``, so each train step's large temporaries were page-faulted
 (about 18,000 faults, 74 MB, per step of batch 128 per device, measured with ``perf stat``).
 It sped the train step up by 19-22 % in two interleaved benchmark runs, but prediction
 measured -1 % and -25 % (the second run under load 8-18), so it is not a default.
+``malloc_tunables`` gives the same settings to processes yet to start, through
+``GLIBC_TUNABLES`` (the test suite starts its workers and commands so).
 
 ``make_mesh`` is the 1-D ``data`` mesh that training and prediction shard batches over.
 """
