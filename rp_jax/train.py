@@ -63,6 +63,8 @@ __all__ = [
     "check_devices",
     "MODEL_FIELDS",
     "DATA_FIELDS",
+    "STEP_FIELDS",
+    "step_fields",
 ]
 
 log = logging.getLogger(__name__)

@@ -56,9 +56,15 @@ _EVENTS = {"/jax/core/compile/jaxpr_trace_duration": "trace",
            "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
            "/jax/core/compile/backend_compile_duration": "compile"}
 _jax_seconds = dict.fromkeys(_EVENTS.values(), 0.0)
-# {program name: {"trace"/"lower"/"compile": seconds, "made": times lowered}}.
-_programs: dict = collections.defaultdict(lambda: {**dict.fromkeys(_EVENTS.values(), 0.0),
-                                                   "made": 0})
+
+
+def _program_row() -> dict:
+    """A program's seconds per stage (``"trace"``, ``"lower"``, ``"compile"``) and ``"made"``,
+    how many times it was lowered."""
+    return {**dict.fromkeys(_EVENTS.values(), 0.0), "made": 0}
+
+
+_programs: dict = collections.defaultdict(_program_row)  # by program name
 
 
 def _program_name(fun_name: str) -> str:
@@ -148,8 +154,7 @@ def summary(folder: Path, top: int = 20) -> str:
     files: dict = collections.defaultdict(lambda: [0.0, 0.0])
     fixtures: dict = collections.defaultdict(lambda: [0.0, 0.0, 0])
     jax_by_test: dict = collections.defaultdict(lambda: dict.fromkeys(_EVENTS.values(), 0.0))
-    programs: dict = collections.defaultdict(lambda: {**dict.fromkeys(_EVENTS.values(), 0.0),
-                                                      "made": 0})
+    programs: dict = collections.defaultdict(_program_row)
     for r in rows:
         if r["kind"] == "programs":
             for name, v in r["programs"].items():

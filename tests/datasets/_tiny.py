@@ -39,13 +39,18 @@ def build_tiny(name: str, data_dir: Path, **kwargs):
     """The ``synthetic_tiny`` build of ``name`` in ``data_dir`` (built unless it is there)."""
     data_dir = Path(data_dir)
     # Two workers building one dataset in one data dir at once would write the same files.
-    with _session_cache.locked(data_dir.parent / f".build-{name}.lock"):
+    with _build_lock(data_dir, name):
         b = loading.get_builder(name, config=TINY, data_dir=data_dir, workers=1, **kwargs)
         built_before = b.is_prepared()
         b.download_and_prepare()  # a no-op where built (tests/datasets/test_builders.py)
         if not built_before:
             _built_record(data_dir, name).write_text(json.dumps(_files_of(data_dir, name)))
     return b
+
+
+def _build_lock(data_dir: Path, name: str):
+    """The lock of ``name``'s build and world in ``data_dir`` (held while either is made)."""
+    return _session_cache.locked(data_dir.parent / f".build-{name}.lock")
 
 
 def _built_record(data_dir: Path, name: str) -> Path:
@@ -95,7 +100,7 @@ def tiny_data_copy(tmp_path_factory, names: Sequence[str], dest: Path) -> Path:
     data_dir = Path(dest) / "tfds"
     for name in names:
         build_tiny(name, shared)
-        with _session_cache.locked(shared.parent / f".build-{name}.lock"):
+        with _build_lock(shared, name):
             _unchanged_since_built(shared, name)
             for rel in (Path(name), Path("downloads") / "groundtruth" / name / TINY):
                 shutil.copytree(shared / rel, data_dir / rel,
@@ -114,7 +119,7 @@ def tiny_world(tmp_path_factory, name: str, seed: int = 0) -> Path:
 
     shared = shared_data_dir(tmp_path_factory)
     root = builder.synthetic_root(shared, name, "tiny", seed)
-    with _session_cache.locked(shared.parent / f".build-{name}.lock"):  # build_tiny's lock
+    with _build_lock(shared, name):
         builder.ensure_synthetic(name, root, size="tiny", seed=seed, workers=1)
     return root
 
@@ -124,7 +129,7 @@ def tiny_world_copy(tmp_path_factory, name: str, dest: Path, seed: int = 0) -> P
     that may write into it: ``builder.synthetic_root(data_dir, name, "tiny", seed)`` of the
     data dir a command is given, for the command to find it rendered."""
     world = tiny_world(tmp_path_factory, name, seed)
-    with _session_cache.locked(shared_data_dir(tmp_path_factory).parent / f".build-{name}.lock"):
+    with _build_lock(shared_data_dir(tmp_path_factory), name):
         shutil.copytree(world, dest, ignore=shutil.ignore_patterns("*.lock"))
     return Path(dest)
 
