@@ -356,6 +356,9 @@ def test_a_layout_where_half_the_queries_have_no_pose(tiny_run, tmp_path):
     (root / presets.EVALUATION_DIR / "ground-truth-query-images-slice8.txt").unlink()
     write_layout.write_cmu_query_poses(root / "slice8", [(n, *poses[n]) for n in kept])
     tfds_dir = argv[argv.index("--data-dir") + 1]
+    # The fixture's RobotCar RP, trained on the same records with the same config (the map's
+    # layout is not part of it): the command loads it instead of training it again.
+    shutil.copytree(workdir / "rp", tmp_path / "run" / "rp")
     half = [
         "--size", "tiny", "--workdir", str(tmp_path / "run"), "--data-dir", tfds_dir,
         "--config.train.num_epochs=1", f"--config.map.root={root}", "--config.map.ratios=(0.5,)",
