@@ -115,6 +115,32 @@ def test_the_commands_answer_help_without_jax_or_scipy():
     assert proc.stdout.strip() == "[]", proc.stdout
 
 
+_WORKER_CHILD = textwrap.dedent(
+    """
+    import sys
+    import rp_jax.localize.matching
+    import rp_jax.mapsum.statistics
+    import rp_jax.sources.colmap_model
+    import rp_jax.sources.robotcar
+    import rp_jax.sources.synthetic.frame_jobs
+
+    print(sorted(m for m in ("scipy.stats", "scipy.sparse", "scipy.spatial", "pycolmap",
+                             "jax", "tensorflow") if m in sys.modules))
+    """
+)
+
+
+def test_what_spawned_workers_import_takes_no_heavy_library():
+    """The rendering processes (``frame_jobs``) and the labelling and seed processes of the
+    map-summarization commands import these modules first thing; scipy.stats, scipy.sparse,
+    scipy.spatial and pycolmap are imported where they are used (a second of CPU each
+    process otherwise: a spawned process imports again what its parent had)."""
+    proc = subprocess.run([sys.executable, "-c", _WORKER_CHILD], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip() == "[]", proc.stdout
+
+
 def test_lazy_packages_keep_their_functions_named_like_submodules():
     """``rp_jax.mapsum`` and ``rp_jax.localize`` import their names on first use;
     ``partition`` and ``vlad`` are also submodules' names, and stay the functions."""

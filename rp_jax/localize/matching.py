@@ -38,7 +38,6 @@ import dataclasses
 import threading
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from rp_jax import bf16
 
@@ -221,6 +220,8 @@ def match_2d3d(
         n1, d1, good = _two_nearest_bf16(q, p[valid], ratio)
     else:
         if use_tree:
+            from scipy.spatial import cKDTree  # on first use (tests/test_imports.py)
+
             dist, nn = cKDTree(p[valid]).query(q, k=2)
         else:
             dist, nn = _two_nearest_brute(q, p[valid])

@@ -21,7 +21,6 @@ Everything here is pure NumPy/SciPy and has no idea what a map is, except
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 from rp_jax.sources.colmap_model import MapPoints
 
@@ -64,6 +63,8 @@ def mcnemar_exact(only_method: int, only_reference: int) -> float:
     n = b + c
     if n == 0:
         return 1.0
+    from scipy import stats  # on first use (tests/test_imports.py)
+
     return float(min(1.0, 2.0 * stats.binom.cdf(min(b, c), n, 0.5)))
 
 
@@ -155,6 +156,8 @@ def inlier_auc(score: np.ndarray, positive: np.ndarray) -> float | None:
     pos, n = int(pos_mask.sum()), len(pos_mask)
     if pos == 0 or pos == n:
         return None
+    from scipy import stats  # on first use (tests/test_imports.py)
+
     r = stats.rankdata(s)
     return float((r[pos_mask].sum() - pos * (pos + 1) / 2) / (pos * (n - pos)))
 

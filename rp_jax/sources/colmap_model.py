@@ -28,12 +28,14 @@ import shutil
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pycolmap
-import scipy.sparse as sp
 
 from rp_jax import files
+
+if TYPE_CHECKING:  # imported where a model is read or copied
+    import pycolmap
 
 __all__ = [
     "MapPoints",
@@ -194,6 +196,8 @@ def read_model(path: str | os.PathLike) -> pycolmap.Reconstruction:
     Raises:
       FileNotFoundError: naming the folder and the files expected there.
     """
+    import pycolmap  # on first use (tests/test_imports.py)
+
     path = Path(path)
     for ext in (".bin", ".txt"):
         if all((path / f"{name}{ext}").is_file() for name in _MODEL_FILES):
@@ -313,6 +317,8 @@ def summary_reconstruction(
     Returns:
       A new reconstruction (``rec`` is not modified).
     """
+    import pycolmap  # on first use (tests/test_imports.py)
+
     summary = pycolmap.Reconstruction(rec)
     keep = set(np.asarray(point3D_ids_to_keep, dtype=np.int64).tolist())
     missing = keep.difference(rec.point3D_ids())
@@ -428,6 +434,8 @@ def mean_per_point(
         counts = np.bincount(obs_point, minlength=num_points)
         has = counts > 0
         n_obs = len(obs_point)
+        import scipy.sparse as sp  # on first use (tests/test_imports.py)
+
         summing = sp.csr_matrix(
             (np.ones(n_obs, dtype=out_dtype), (obs_point, np.arange(n_obs))),
             shape=(num_points, n_obs),

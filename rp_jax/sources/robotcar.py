@@ -77,7 +77,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from rp_jax import categories
 from rp_jax.progress import bar as tqdm  # the one progress helper
@@ -182,6 +181,8 @@ def bayer_pattern(image_dir: str) -> str:
 
 def euler_to_rotation(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll) (radians), shape (..., 3, 3)."""
+    from scipy.spatial.transform import Rotation  # on first use (tests/test_imports.py)
+
     angles = np.stack(np.broadcast_arrays(yaw, pitch, roll), axis=-1)
     return (
         Rotation.from_euler("ZYX", angles.reshape(-1, 3))
@@ -283,6 +284,8 @@ def interpolate_poses(table: Mapping[str, np.ndarray], timestamps: np.ndarray) -
     position = np.stack(
         [np.interp(x, t_unique, table[c][first]) for c in ("northing", "easting", "down")], axis=-1
     )
+    from scipy.spatial.transform import Rotation, Slerp  # on first use (tests/test_imports.py)
+
     rotations = Rotation.from_matrix(
         euler_to_rotation(table["roll"][first], table["pitch"][first], table["yaw"][first])
     )
