@@ -26,10 +26,13 @@ import ctypes
 import ctypes.util
 import os
 import platform as _platform
+import sys
+from typing import TYPE_CHECKING
 
-import jax
 import numpy as np
-from jax.sharding import Mesh
+
+if TYPE_CHECKING:  # JAX is imported where a mesh is made: a process that only sets up the
+    from jax.sharding import Mesh  # CPU (a seed or labelling process) need not import it
 
 __all__ = ["configure_cpu", "make_mesh", "malloc_tunables", "tune_malloc", "YNN_FLAG"]
 
@@ -96,11 +99,17 @@ def configure_cpu(
     if ynn and "ynn_fusion_type" not in flags:
         os.environ["XLA_FLAGS"] = f"{flags} {YNN_FLAG}".strip()
     if "xla_force_host_platform_device_count" not in flags:
-        jax.config.update("jax_num_cpu_devices", n)
+        if "jax" in sys.modules:
+            sys.modules["jax"].config.update("jax_num_cpu_devices", n)
+        else:  # read by JAX when it is imported (and by the processes this one starts)
+            os.environ["JAX_NUM_CPU_DEVICES"] = str(n)
 
 
 def make_mesh(num_devices: int = 0) -> Mesh:
     """A 1-D ``data`` mesh over the first ``num_devices`` local devices (0 = all)."""
+    import jax
+    from jax.sharding import Mesh
+
     devices = jax.local_devices()
     if num_devices:
         if num_devices > len(devices):

@@ -9,9 +9,7 @@ COLMAP map for a time and localizes queries against it.
 import os
 from pathlib import Path
 
-import nbformat
 import pytest
-from nbclient import NotebookClient
 
 from tests.datasets._tiny import tiny_data_copy
 
@@ -19,6 +17,11 @@ NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 
 
 def _execute(name: str, env: dict, cwd: Path):
+    # Jupyter's client is imported by the tests that use it, not by every test process at
+    # collection (about a second of CPU).
+    import nbformat
+    from nbclient import NotebookClient
+
     nb = nbformat.read(NOTEBOOKS / name, as_version=4)
     old = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
@@ -82,6 +85,8 @@ def test_committed_with_outputs_small_and_colab_ready(name):
     cell that installs the package in Colab and does nothing elsewhere."""
     path = NOTEBOOKS / name
     assert path.stat().st_size < 1_000_000
+    import nbformat
+
     nb = nbformat.read(path, as_version=4)
     code = [c for c in nb.cells if c.cell_type == "code"]
     assert all(c.get("execution_count") for c in code), "saved without running every cell"

@@ -51,3 +51,26 @@ def test_a_process_started_with_the_tunables_keeps_what_it_frees():
 
     assert kept_mb(platform.malloc_tunables()) > 150
     assert kept_mb(None) < 50
+
+
+_CONFIGURE_BEFORE_JAX = """
+import sys
+from rp_jax import platform
+platform.configure_cpu(num_devices=3, ynn=False)
+imported = "jax" in sys.modules
+import jax
+print(imported, len(jax.devices("cpu")))
+"""
+
+
+def test_configure_cpu_before_jax_is_imported_sets_the_device_count_without_importing_it():
+    """A seed or labelling process sets up the CPU first thing and may never use JAX: the
+    set-up does not import JAX (a second or two of CPU), and JAX, imported later, splits the
+    CPU as asked. (After JAX's import the count is set through its config:
+    tests/test_imports.py.)"""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("XLA_FLAGS", "RP_JAX_NO_CPU_SETUP", "JAX_NUM_CPU_DEVICES")}
+    proc = subprocess.run([sys.executable, "-c", _CONFIGURE_BEFORE_JAX], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.split() == ["False", "3"]

@@ -1,16 +1,16 @@
 """Tests of the NOAA solar position against pvlib (Sec. V: sun direction as a factor)."""
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from rp_jax.sun import solar_position, sun_direction, sun_in_camera_frame
 
-pvlib = pytest.importorskip("pvlib")
-
 
 @pytest.mark.parametrize("latitude", [-55.0, -33.9, 0.0, 23.4, 40.44, 51.75, 64.1])
 def test_matches_pvlib_within_half_degree(latitude):
+    # Imported here, not at collection: pandas and pvlib cost each test process 2 s of CPU.
+    pd = pytest.importorskip("pandas")
+    pvlib = pytest.importorskip("pvlib")
     rng = np.random.default_rng(int(latitude * 10) % 1000)
     ts = rng.uniform(
         pd.Timestamp("1990-01-01").timestamp(), pd.Timestamp("2040-01-01").timestamp(), 400
