@@ -34,6 +34,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -74,27 +75,32 @@ def viewpoint_days(num_frames: int) -> list[int]:
     return sorted((k * _DAY_STRIDE) % NUM_DAYS for k in range(days))
 
 
-def _plan(world: Path, size_name: str):
-    """The frame jobs of every day (``plan_webcam``'s own planner, scene_00 only)."""
+def _plan(world: Path, size_name: str, days: Sequence[int] | None = None):
+    """The frame jobs of the viewpoint on ``days`` (indices into its ``NUM_DAYS`` days;
+    default all): ``plan_webcam``'s own planner, scene_00's site only. A day's frames are
+    the same whichever other days are planned with it."""
     from rp_jax.sources.synthetic import plan_webcam
 
     width, height = IMAGE_SIZE[size_name]
     spec = plan_webcam._WebcamSize(scenes=8, days=NUM_DAYS, slot_step=1, off_slot=0,
                                    width=width, height=height)
-    days = [FIRST_DAY + dt.timedelta(days=k) for k in range(NUM_DAYS)]
+    wanted = set(range(NUM_DAYS) if days is None else days)
+    planned = [FIRST_DAY + dt.timedelta(days=k) if k in wanted else None
+               for k in range(NUM_DAYS)]
+    sites = plan_webcam.webcam_sites(0, 8, plan_webcam.CLIPART_SCENE_EXTRA)
     return plan_webcam._plan(
         "webcam_clipart", world, "full", 0,
-        plan_webcam.webcam_sites(0, 8, plan_webcam.CLIPART_SCENE_EXTRA), width, height,
-        days_of=lambda i: days if i == SCENE_INDEX else [],
+        [site for site in sites if site.index == SCENE_INDEX], width, height,
+        days_of=lambda i: planned,
         times_of=lambda day, tz, rng: plan_webcam.webcam_times(day, tz, spec, rng),
     )
 
 
-def _jobs_of(plan, num_frames: int) -> list:
-    """The first ``num_frames`` frames, in time order, of the days of that size."""
-    wanted = {FIRST_DAY + dt.timedelta(days=d) for d in viewpoint_days(num_frames)}
-    jobs = sorted((j for j in plan.jobs if j.when.date() in wanted), key=lambda j: j.when)
-    return jobs[:num_frames]
+def _jobs_of(world: Path, size_name: str, num_frames: int) -> list:
+    """The first ``num_frames`` frames, in time order, of the days of that size (those days
+    alone are planned: the whole viewpoint is 10,017 frames, two seconds to plan)."""
+    plan = _plan(world, size_name, viewpoint_days(num_frames))
+    return sorted(plan.jobs, key=lambda j: j.when)[:num_frames]
 
 
 def render_frames(stage_dir: Path, num_frames: int, size_name: str = "full", *,
@@ -110,8 +116,7 @@ def render_frames(stage_dir: Path, num_frames: int, size_name: str = "full", *,
     from rp_jax.sources.synthetic import frame_jobs, write_layout
 
     world = Path(stage_dir) / "world"
-    plan = _plan(world, size_name)
-    jobs = _jobs_of(plan, num_frames)
+    jobs = _jobs_of(world, size_name, num_frames)
     t0, c0 = time.perf_counter(), _cpu_seconds()
     rendered = frame_jobs.run_jobs(jobs, workers=workers, progress=progress)
     for job in jobs:  # the frame's sun angles, as the world's own finalize writes them
@@ -131,8 +136,7 @@ def layout_for(stage_dir: Path, num_frames: int, size_name: str = "full") -> Pat
     from rp_jax.sources.synthetic import write_layout
 
     world = Path(stage_dir) / "world"
-    plan = _plan(world, size_name)
-    jobs = _jobs_of(plan, num_frames)
+    jobs = _jobs_of(world, size_name, num_frames)
     missing = [j.image_path for j in jobs if not j.image_path.exists()]
     if missing:
         raise FileNotFoundError(f"{len(missing)} frames not rendered yet, e.g. {missing[0]}")

@@ -7,6 +7,7 @@ viewpoints the stage builds and the report's structure.
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 
 import numpy as np
@@ -31,10 +32,19 @@ def test_smaller_viewpoints_are_spread_subsets_of_larger_ones():
 def test_the_viewpoint_is_the_webcam_presets_scene_as_it_renders_it(tmp_path):
     from rp_jax.sources.synthetic import presets
 
-    ours = {j.scene for j in label_scale_stage._plan(tmp_path / "b", "tiny").jobs}
+    whole = label_scale_stage._plan(tmp_path / "b", "tiny").jobs  # all 477 days
+    ours = {j.scene for j in whole}
     preset = presets.plan("webcam_clipart", tmp_path / "p", size="full", seed=0)
     scene = preset.jobs[0].scene  # scene_00 (in its city's own climate)
     assert ours == {scene} and dict(scene.extra).get("climate") == "local"
+    # A size's frames, planned alone (its days only), are those of the whole viewpoint.
+    days = {label_scale_stage.FIRST_DAY + dt.timedelta(days=d)
+            for d in viewpoint_days(42)}
+    want = sorted((j for j in whole if j.when.date() in days), key=lambda j: j.when)[:42]
+    got = label_scale_stage._jobs_of(tmp_path / "b", "tiny", 42)
+    assert [(j.image_path, j.when, j.frame_seed) for j in got] == [
+        (j.image_path, j.when, j.frame_seed) for j in want]
+    np.testing.assert_array_equal(np.stack([j.R for j in got]), np.stack([j.R for j in want]))
 
 
 def test_fit_of_cost_against_frames():

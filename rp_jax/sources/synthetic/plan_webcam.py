@@ -282,11 +282,13 @@ def _plan(
     width: int,
     height: int,
     *,
-    days_of: Callable[[int], list[dt.date]],
+    days_of: Callable[[int], list[dt.date | None]],
     times_of: Callable[[dt.date, zoneinfo.ZoneInfo, np.random.Generator], list[dt.datetime]],
 ) -> Plan:
     """The frames of a Webcam Clip Art layout: each site's webcam on the days
-    ``days_of(site.index)`` at the instants ``times_of(day, zone, rng)``."""
+    ``days_of(site.index)`` at the instants ``times_of(day, zone, rng)``. A day given as
+    None is left out and the others keep their place in the list, so their frames are the
+    ones the whole list plans (each day's random streams are keyed by that place)."""
     jobs: list[FrameJob] = []
     sidecars: list[tuple[Path, dict]] = []
     for site in sites:
@@ -299,6 +301,8 @@ def _plan(
         scene_dir = out_dir / name
         days = days_of(i)
         for d_idx, day in enumerate(days):
+            if day is None:
+                continue
             day_rng = seeded_rng(seed, 5, i, d_idx)
             for k, when in enumerate(times_of(day, tz, day_rng)):
                 # A mast sways: sub-pixel to ~1 px of rotation.
@@ -332,7 +336,7 @@ def _plan(
                     "synthetic": {
                         "city": site.city,
                         "facade_azimuth_deg": site.facade_azimuth,
-                        "days": [d.isoformat() for d in days],
+                        "days": [d.isoformat() for d in days if d is not None],
                         "scene": dataclasses.asdict(scene_spec),
                         "seed": seed,
                         "size": size,
