@@ -31,8 +31,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # JAX is imported where a mesh is made: a process that only sets up the
-    from jax.sharding import Mesh  # CPU (a seed or labelling process) need not import it
+# JAX is imported where a mesh is made: a process that only sets up the CPU (a seed or
+# labelling process of the commands) need not import it.
+if TYPE_CHECKING:
+    from jax.sharding import Mesh
 
 __all__ = ["configure_cpu", "make_mesh", "malloc_tunables", "tune_malloc", "YNN_FLAG"]
 
