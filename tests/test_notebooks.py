@@ -18,7 +18,7 @@ NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 
 def _execute(name: str, env: dict, cwd: Path):
     # Jupyter's client is imported by the tests that use it, not by every test process at
-    # collection (about a second of CPU).
+    # collection (0.3 s of CPU).
     import nbformat
     from nbclient import NotebookClient
 

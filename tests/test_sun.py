@@ -8,7 +8,7 @@ from rp_jax.sun import solar_position, sun_direction, sun_in_camera_frame
 
 @pytest.mark.parametrize("latitude", [-55.0, -33.9, 0.0, 23.4, 40.44, 51.75, 64.1])
 def test_matches_pvlib_within_half_degree(latitude):
-    # Imported here, not at collection: pandas and pvlib cost each test process 2 s of CPU.
+    # Imported here, not at collection: pandas and pvlib take 1.3 to 1.6 s of CPU to import.
     pd = pytest.importorskip("pandas")
     pvlib = pytest.importorskip("pvlib")
     rng = np.random.default_rng(int(latitude * 10) % 1000)
