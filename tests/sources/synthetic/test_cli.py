@@ -80,14 +80,34 @@ def test_module_entry_point():
 
 
 @pytest.mark.slow
-def test_a_parallel_render_ends_without_killing_its_workers(tmp_path):
+def test_a_parallel_render_ends_without_killing_its_workers(tmp_path, tmp_path_factory):
     """Leaving the render pool through ``with`` terminated it: its SIGTERM reached workers
     that were already exiting, and JAX's signal handler printed a stack trace for each
-    ("*** SIGTERM received ***"; 4 in each of 3 runs of this command before the fix)."""
+    ("*** SIGTERM received ***"; 4 in each of 3 runs of this command before the fix).
+
+    The command resumes the session's tiny world with two thirds of its frames removed: 32
+    frames to render, two processes' worth (``MIN_FRAMES_PER_WORKER``), whose files must be
+    those the session rendered in one process."""
+    from rp_jax.sources.synthetic import presets
+    from tests.datasets._tiny import tiny_world, tiny_world_copy
+
+    out = tiny_world_copy(tmp_path_factory, "cmu_seasons", tmp_path / "cmu")
+    jobs = presets.plan("cmu_seasons", out, size="tiny", seed=0).jobs
+    removed = jobs[len(jobs) - 2 * frame_jobs.MIN_FRAMES_PER_WORKER:]
+    assert len(removed) == 32 and all(job.done() for job in jobs)
+    for job in removed:
+        job.image_path.unlink()
     run = subprocess.run(
         [sys.executable, "-m", "rp_jax.sources.synthetic", "cmu_seasons", "--size", "tiny",
-         "--workers", "2", "--quiet", str(tmp_path / "cmu")],
+         "--workers", "2", str(out)],
         cwd=REPO, capture_output=True, text=True, timeout=600, check=False,
     )
     assert run.returncode == 0, run.stderr
     assert "SIGTERM" not in run.stderr and "Aborted" not in run.stderr, run.stderr[-2000:]
+    assert "rendering 32" in run.stderr  # the frames removed, and only those
+    assert _files(out) == _files(tiny_world(tmp_path_factory, "cmu_seasons"))
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes()
+            for p in sorted(root.rglob("*")) if p.is_file()}

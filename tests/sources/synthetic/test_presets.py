@@ -27,7 +27,7 @@ from rp_jax import categories, sun
 from rp_jax.schedule import preset as schedule_preset
 from rp_jax.sources.synthetic import frame_jobs, presets, write_layout
 from rp_jax.sources.synthetic.route import rotation_ned
-from tests.datasets._tiny import tiny_world_copy
+from tests.datasets._tiny import tiny_world, tiny_world_copy
 
 # --------------------------------------------------------------------------- a tiny exact world
 
@@ -438,14 +438,15 @@ def test_bad_arguments(tmp_path):
 
 
 @pytest.mark.slow
-def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, monkeypatch):
+def test_real_renderer_webcam_parallel_is_deterministic(tmp_path, tmp_path_factory,
+                                                       monkeypatch):
     monkeypatch.setattr(frame_jobs, "MIN_FRAMES_PER_WORKER", 1)  # really use two processes
     a = presets.generate(
         "webcam_clipart", tmp_path / "a", size="tiny", seed=0, workers=2, progress=False
     )
-    b = presets.generate(
-        "webcam_clipart", tmp_path / "b", size="tiny", seed=0, workers=1, progress=False
-    )
+    # The same world rendered in one process: the session's (``presets.generate`` with one
+    # worker, rendered once for every test that reads it).
+    b = tiny_world(tmp_path_factory, "webcam_clipart")
     assert _files(a) == _files(b)  # two processes or one: same bytes
     stds = []
     for f in sorted(a.glob("scene_*/*.jpg")):
