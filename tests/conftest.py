@@ -54,3 +54,24 @@ import chex  # noqa: E402
 
 chex.set_n_cpu_devices(2)
 
+
+
+# The order the xdist workers take the test files in (``make test`` runs ``--dist loadfile``:
+# each file whole on one worker). xdist's own order is by number of tests, most first, which
+# left the end-to-end files of few tests (the two-process training, the notebooks: 20 to 40 s
+# each) for last, and one worker ran one of them while the other had nothing left (12.4 s at
+# the end of a run, 2026-12-07). Files of end-to-end tests (marked ``slow``) are handed out
+# first, those with most such tests first, then the others by number of tests; the order
+# within a file is kept.
+def pytest_configure(config):
+    if hasattr(config.option, "loadscopereorder"):  # pytest-xdist's: keep the order below
+        config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(config, items):
+    by_file: dict = {}
+    for item in items:
+        by_file.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    weight = lambda tests: (sum(t.get_closest_marker("slow") is not None for t in tests),  # noqa: E731
+                            len(tests))
+    items[:] = [t for tests in sorted(by_file.values(), key=weight, reverse=True) for t in tests]
