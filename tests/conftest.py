@@ -55,7 +55,6 @@ import chex  # noqa: E402
 chex.set_n_cpu_devices(2)
 
 
-
 # The order the xdist workers take the test files in (``make test`` runs ``--dist loadfile``:
 # each file whole on one worker). xdist's own order is by number of tests, most first, which
 # left the end-to-end files of few tests (the two-process training, the notebooks: 20 to 40 s
@@ -68,10 +67,13 @@ def pytest_configure(config):
         config.option.loadscopereorder = False
 
 
+def _weight(tests) -> tuple[int, int]:
+    """A file's place in the order: its end-to-end tests, then its tests (more first)."""
+    return sum(t.get_closest_marker("slow") is not None for t in tests), len(tests)
+
+
 def pytest_collection_modifyitems(config, items):
     by_file: dict = {}
     for item in items:
         by_file.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
-    weight = lambda tests: (sum(t.get_closest_marker("slow") is not None for t in tests),  # noqa: E731
-                            len(tests))
-    items[:] = [t for tests in sorted(by_file.values(), key=weight, reverse=True) for t in tests]
+    items[:] = [t for tests in sorted(by_file.values(), key=_weight, reverse=True) for t in tests]
