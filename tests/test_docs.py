@@ -342,7 +342,7 @@ def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
             "on 2 cores, AMD EPYC.") in text
 
 
-def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
+def test_suite_times_table_gives_each_run_against_the_suite_before_and_the_jax_share():
     runs = [{"suite": s, "code": "abc", "tests": "9 passed", "pytest_s": p, "make_test_s": p + 4,
              "user_s": 2 * p} for s, p in (("before", 400.0), ("now", 300.0))]
     text = docs_tables.suite_times_table({
@@ -389,6 +389,15 @@ def test_suite_times_table_gives_each_run_against_the_first_and_the_jax_share():
     assert ("Measured on AMD EPYC; fresh clones.\n\nThe same pair again (in the other order): "
             "now 330 s, before 440 s, so now 75 % of the suite before.") in text
     assert "8 passed in 150 s of pytest against 420 s" in text
+    # A pair run with the suite now first is still measured against the suite before.
+    text = docs_tables.suite_times_table({
+        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+        "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
+        "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02",
+                            "what": "now first", "runs": again["runs"]}]})
+    assert "| now | 9 passed | 330 s | 304 s | 600 s |\n| before |" in text
+    assert "Pytest wall against the suite before: now 75 %." in text.split("now first")[1]
     assert "No suite timing" in docs_tables.suite_times_table(None)
 
 
