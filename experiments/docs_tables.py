@@ -653,14 +653,17 @@ def suite_times_table(data: Mapping | None) -> str:
     if not data:
         return "_No suite timing is committed under `experiments/results/`._\n"
 
+    def before_run(runs) -> Mapping:
+        # The suite before wherever it stands: a pair run in the other order lists the suite
+        # now first.
+        return next((r for r in runs if r["suite"] == "before"), runs[0])
+
     def table(runs) -> tuple[list[str], str]:
         rows = ["| suite | tests | pytest wall | `make test` wall | user CPU |",
                 "|---|---|---|---|---|"]
         rows += [f"| {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
                  f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s |" for r in runs]
-        # Against the suite before wherever it stands: a pair run in the other order lists
-        # the suite now first.
-        before = next((r for r in runs if r["suite"] == "before"), runs[0])
+        before = before_run(runs)
         return rows, ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before['pytest_s']:.0f} %"
                                for r in runs if r is not before)
 
@@ -668,7 +671,7 @@ def suite_times_table(data: Mapping | None) -> str:
         out = []
         again = record.get("repeat")  # the same pair measured again on the same machine
         if again:
-            before = next(r for r in again["runs"] if r["suite"] == "before")["pytest_s"]
+            before = before_run(again["runs"])["pytest_s"]
             out += ["", f"The same pair again ({again['what']}): " + ", ".join(
                 f"{r['suite']} {r['pytest_s']:.0f} s" for r in again["runs"])
                 + ", so " + ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %"
