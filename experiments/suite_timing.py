@@ -1,0 +1,294 @@
+"""``python -m experiments.suite_timing``: time ``make test`` of the code now against an
+earlier commit on this machine, the way ``docs/testing.md`` compares the suite's times.
+
+Each run is a fresh ``git clone`` of this checkout, checked out at its commit, running the
+command (``make test``: creating ``.venv`` from the package cache, then the whole suite,
+cold: no compilation cache, no bytecode). The runs follow one another in one script, nothing
+else should run meanwhile, and pairs alternate their order (now, before, then before, now,
+...): a host that slows or speeds up steadily over the hour then favours neither code
+summed over two pairs. A probe beside them times a fixed pure-Python loop every
+``--probe-interval`` seconds; its CPU seconds rise when the host is busier, so a run's
+median probe says whether the host moved between two runs of a pair (a shared host moved
+5 to 13 % between two runs in the record of ``experiments/results/suite_times.md``).
+
+    python -m experiments.suite_timing --before 30ff2ce --pairs 2 --out runs/suite_timing.json
+    python -m experiments.suite_timing ... --record experiments/results/suite_times.json
+
+A killed measurement started again with the same arguments keeps the runs it finished and
+runs the rest. ``--record`` adds each pair to the committed record (``other_machines``,
+newest first) that ``python -m experiments.docs_tables`` renders into ``docs/testing.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import re
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from experiments.benchmark.stats import cpu_peak
+from rp_jax import files
+
+CHECKOUT = Path(__file__).resolve().parents[1]
+NOW, BEFORE = "now, cold", "before"
+# pytest's last line: "1 failed, 745 passed, 9 skipped in 877.30s (0:14:37)", with -q or
+# between "=" rules without it.
+_SUMMARY = re.compile(r"^=*\s*((?:\d+ [a-z]+(?:, )?)+) in ([\d.]+)s\b", re.MULTILINE)
+
+
+def run_order(pairs: int) -> list[tuple[int, str]]:
+    """(pair, suite) in the order they run: pair 0 the code now first, pair 1 the code
+    before first, and so on, so that each two pairs run now, before, before, now."""
+    if pairs < 1:
+        raise ValueError(f"--pairs must be at least 1, not {pairs}")
+    return [(p, s) for p in range(pairs) for s in ((NOW, BEFORE) if p % 2 == 0 else (BEFORE, NOW))]
+
+
+def pytest_summary(log: str) -> tuple[str, float]:
+    """(``"1122 passed, 9 skipped"``, pytest's wall seconds) from the last summary line of a
+    pytest output; ValueError where it has none (the suite did not finish)."""
+    found = _SUMMARY.findall(log)
+    if not found:
+        raise ValueError("no pytest summary line ('N passed ... in S s') in the output")
+    tests, seconds = found[-1]
+    return tests.strip().rstrip(","), float(seconds)
+
+
+def machine_text(cpu: Mapping, coretype: str | None) -> str:
+    """``"a 2-core AMD EPYC (AVX2, no AVX-512), OPENBLAS_CORETYPE not set"``, as the record
+    names its machines."""
+    isa = {"AVX-512": "AVX-512", "AVX2+FMA": "AVX2, no AVX-512"}.get(cpu["isa"], cpu["isa"])
+    if cpu.get("amx_bf16"):
+        isa += ", AMX-BF16"
+    blas = f"OPENBLAS_CORETYPE={coretype}" if coretype else "OPENBLAS_CORETYPE not set"
+    return f"a {cpu['cores']}-core {cpu['model']} ({isa}), {blas}"
+
+
+def shares(runs: Sequence[Mapping]) -> dict:
+    """The code now against the code before: per pair and summed over each two pairs in
+    opposite orders (now, before, before, now), for pytest's wall, ``make test``'s wall and
+    user CPU; ``median_pytest`` over the pairs. Pairs are numbered from 0 in ``pairs`` and
+    from 1 in ``balanced``'s names (``"1,2"``); pairs without both runs are left out."""
+    by_pair: dict[int, dict[str, Mapping]] = {}
+    for r in runs:
+        by_pair.setdefault(r["pair"], {})[r["suite"]] = r
+    keys = ("pytest_s", "make_test_s", "user_s")
+
+    def ratio(now: Sequence[Mapping], before: Sequence[Mapping]) -> dict:
+        sums = {k: (sum(r[k] for r in now), sum(r[k] for r in before)) for k in keys}
+        return {k: a / b if b else None for k, (a, b) in sums.items()}
+
+    done = sorted(p for p, two in by_pair.items() if set(two) == {NOW, BEFORE})
+    pairs = {p: ratio([by_pair[p][NOW]], [by_pair[p][BEFORE]]) for p in done}
+    balanced = {f"{p + 1},{p + 2}": ratio([by_pair[p][NOW], by_pair[p + 1][NOW]],
+                                      [by_pair[p][BEFORE], by_pair[p + 1][BEFORE]])
+                for p in done if p % 2 == 0 and p + 1 in pairs}
+    return {"pairs": pairs, "balanced": balanced,
+            "median_pytest": statistics.median(s["pytest_s"] for s in pairs.values())
+            if pairs else None}
+
+
+class Probe:
+    """A thread timing a fixed pure-Python loop every ``interval`` seconds, each sample
+    filed under the run going on (``label``); ``median(label)`` in CPU seconds."""
+
+    def __init__(self, interval: float, loops: int = 1_500_000):
+        self.interval, self.loops = interval, loops
+        self.label: str | None = None
+        self.samples: dict[str, list[float]] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _work(self) -> float:
+        start, s = time.thread_time(), 0
+        for i in range(self.loops):
+            s += i * i % 7
+        return time.thread_time() - start
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            label, seconds = self.label, self._work()
+            if label is not None and label == self.label:
+                self.samples.setdefault(label, []).append(seconds)
+            self._stop.wait(self.interval)
+
+    def median(self, label: str) -> float | None:
+        got = self.samples.get(label)
+        return round(statistics.median(got), 4) if got else None
+
+    def __enter__(self) -> Probe:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
+def clean_env(env: Mapping[str, str], prefix: str = sys.prefix) -> dict[str, str]:
+    """``env`` without this interpreter's virtual environment (``VIRTUAL_ENV`` and its
+    ``bin`` on ``PATH``): each clone makes and uses its own."""
+    out = {k: v for k, v in env.items() if k != "VIRTUAL_ENV"}
+    if "PATH" in out and prefix != getattr(sys, "base_prefix", prefix):
+        out["PATH"] = os.pathsep.join(d for d in out["PATH"].split(os.pathsep)
+                                      if Path(d) != Path(prefix) / "bin")
+    return out
+
+
+def _git(*args: str, cwd: Path) -> str:
+    return subprocess.run(["git", *args], cwd=cwd, check=True, capture_output=True,
+                          text=True).stdout.strip()
+
+
+def time_run(repo: Path, commit: str, clone: Path, command: str, log: Path,
+             env: Mapping[str, str]) -> dict:
+    """Clone ``repo`` into ``clone`` (removed first and after), check out ``commit``, run
+    ``command`` there with its output in ``log``: its wall and CPU seconds (this process's
+    waited-for children, ``make`` and everything below it) and pytest's summary."""
+    shutil.rmtree(clone, ignore_errors=True)
+    subprocess.run(["git", "clone", "--quiet", str(repo), str(clone)], check=True)
+    try:
+        _git("checkout", "--quiet", commit, cwd=clone)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        start = time.monotonic()
+        with files.replacing(log) as tmp, open(tmp, "w") as out:
+            code = subprocess.run(command, shell=True, cwd=clone, env=dict(env), stdout=out,
+                                  stderr=subprocess.STDOUT).returncode
+        wall = time.monotonic() - start
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    finally:
+        shutil.rmtree(clone, ignore_errors=True)
+    try:
+        tests, pytest_s = pytest_summary(log.read_text(errors="replace"))
+    except ValueError as e:
+        raise RuntimeError(f"{command!r} at {commit[:7]} ended ({code}) without finishing "
+                           f"the suite: {e}; its output is {log}") from None
+    return {"code": commit[:7], "tests": tests, "pytest_s": round(pytest_s, 1),
+            "make_test_s": round(wall, 1),
+            "user_s": round(after.ru_utime - before.ru_utime, 1),
+            "sys_s": round(after.ru_stime - before.ru_stime, 1), "exit_status": code}
+
+
+def record_entries(result: Mapping) -> list[dict]:
+    """One entry per finished pair for ``suite_times.json``'s ``other_machines``, in the
+    record's form, the newest pair first."""
+    out = []
+    for p, share in sorted(shares(result["runs"])["pairs"].items(), reverse=True):
+        runs = [r for r in result["runs"] if r["pair"] == p]
+        probes = ", ".join(f"{r['suite']} {r['probe_s']} s" for r in runs if r.get("probe_s"))
+        out.append({
+            "machine": result["machine"], "date": result["date"],
+            "what": (f"python -m experiments.suite_timing, pair {p + 1} of {result['pairs']}: "
+                     f"fresh clones running {result['command']}, cold, one after the other, "
+                     f"the suite {'now' if runs[0]['suite'] == NOW else 'before'} first; "
+                     f"median probe {probes}; the suite now {100 * share['pytest_s']:.1f} % "
+                     "of the suite before's pytest wall"),
+            "runs": [{k: r[k] for k in ("suite", "code", "tests", "pytest_s", "make_test_s",
+                                        "user_s")} for r in runs]})
+    return out
+
+
+def _settings(args, now: str, before: str, coretype: str | None) -> dict:
+    return {"repo": str(args.repo.resolve()), "command": args.command, "now": now,
+            "before": before, "pairs": args.pairs,
+            "coretype": coretype, "probe_interval_s": args.probe_interval}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.suite_timing",
+        description="Time the test suite of the code now against an earlier commit: fresh "
+                    "clones, cold, pairs in alternating order, a CPU probe beside them.")
+    parser.add_argument("--before", required=True, help="the earlier commit (e.g. 30ff2ce)")
+    parser.add_argument("--now", default="HEAD", help="the code now (default: HEAD; "
+                        "uncommitted changes are not in a clone)")
+    parser.add_argument("--pairs", type=int, default=2,
+                        help="pairs to run, alternating their order (default 2: now, before, "
+                             "before, now)")
+    parser.add_argument("--command", default="make test", help="what each clone runs")
+    parser.add_argument("--repo", type=Path, default=CHECKOUT,
+                        help="the repository to clone (default: this checkout)")
+    parser.add_argument("--out", type=Path, default=Path("runs/suite_timing.json"),
+                        help="the result, rewritten after each run; a run started again with "
+                             "the same arguments keeps the runs it holds")
+    parser.add_argument("--clones", type=Path, default=None,
+                        help="where the clones go (default: a temporary folder)")
+    parser.add_argument("--probe-interval", type=float, default=15.0,
+                        help="seconds between the probe's timings (default 15)")
+    parser.add_argument("--record", type=Path, default=None,
+                        help="add the pairs to this suite_times.json (other_machines)")
+    args = parser.parse_args(argv)
+    if args.pairs < 1:
+        parser.error(f"--pairs must be at least 1, not {args.pairs}")
+    repo = args.repo.resolve()
+    try:
+        now, before = (_git("rev-parse", "--verify", f"{c}^{{commit}}", cwd=repo)
+                       for c in (args.now, args.before))
+    except subprocess.CalledProcessError as e:
+        parser.error(f"not a commit of {repo}: {e.stderr.strip()}")
+    coretype = os.environ.get("OPENBLAS_CORETYPE") or None
+    settings = _settings(args, now, before, coretype)
+    result = {"settings": settings, "date": dt.date.today().isoformat(),
+              "machine": machine_text(cpu_peak(), coretype), "pairs": args.pairs,
+              "command": args.command, "runs": []}
+    if args.out.exists():
+        earlier = json.loads(args.out.read_text())
+        if earlier.get("settings") != settings:
+            print(f"{args.out} holds a measurement of other settings "
+                  f"({earlier.get('settings')}); give another --out", file=sys.stderr)
+            return 2
+        result["runs"] = earlier["runs"]
+    logs = args.out.with_suffix("")
+    logs.mkdir(parents=True, exist_ok=True)
+    done = {(r["pair"], r["suite"]) for r in result["runs"]}
+    order = run_order(args.pairs)
+    with tempfile.TemporaryDirectory(dir=args.clones) as clones, \
+            Probe(args.probe_interval) as probe:
+        for i, (pair, suite) in enumerate(order):
+            if (pair, suite) in done:
+                continue
+            commit = now if suite == NOW else before
+            label = f"{pair}-{suite.split(',')[0]}"
+            print(f"[{i + 1}/{len(order)}] pair {pair + 1}, the suite {suite} ({commit[:7]}): "
+                  f"{args.command} in a fresh clone", file=sys.stderr, flush=True)
+            probe.label = label
+            run = time_run(repo, commit, Path(clones) / label, args.command,
+                           logs / f"{label}.log", clean_env(os.environ))
+            probe.label = None
+            run = {"pair": pair, "suite": suite, **run, "probe_s": probe.median(label)}
+            result["runs"].append(run)
+            files.write_json(args.out, result)
+            print(f"    {run['tests']} in {run['pytest_s']} s of pytest, "
+                  f"{run['make_test_s']} s of {args.command}, {run['user_s']} s user CPU",
+                  file=sys.stderr, flush=True)
+    summary = shares(result["runs"])
+    result["shares"] = summary
+    files.write_json(args.out, result)
+    for p, s in summary["pairs"].items():
+        user = f"{100 * s['user_s']:.1f} %" if s["user_s"] is not None else "-"
+        print(f"pair {p + 1}: the suite now takes {100 * s['pytest_s']:.1f} % of the suite "
+              f"before's pytest wall ({user} of its user CPU)")
+    for name, s in summary["balanced"].items():
+        print(f"pairs {name.replace(',', ' and ')} summed (both orders): "
+              f"{100 * s['pytest_s']:.1f} % of the pytest wall")
+    if args.record is not None:
+        record = json.loads(args.record.read_text())
+        record["other_machines"] = [*record_entries(result), *record.get("other_machines", ())]
+        files.write_json(args.record, record)
+        print(f"added {len(summary['pairs'])} pairs to {args.record}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

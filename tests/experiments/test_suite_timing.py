@@ -1,0 +1,137 @@
+"""experiments.suite_timing: the order of the runs, pytest's summary, the shares, and a
+whole measurement on a tiny repository whose 'suite' prints a summary line."""
+
+import json
+import subprocess
+
+import pytest
+
+from experiments import suite_timing as st
+
+
+def test_pairs_alternate_their_order():
+    assert st.run_order(3) == [(0, st.NOW), (0, st.BEFORE), (1, st.BEFORE), (1, st.NOW),
+                               (2, st.NOW), (2, st.BEFORE)]
+    with pytest.raises(ValueError, match="at least 1"):
+        st.run_order(0)
+
+
+@pytest.mark.parametrize("log, want", [
+    ("....\n1122 passed, 9 skipped in 463.00s (0:07:43)\n", ("1122 passed, 9 skipped", 463.0)),
+    ("FAILED tests/x.py::t - assert 1\n1 failed, 745 passed, 9 skipped in 877.30s (0:14:37)\n",
+     ("1 failed, 745 passed, 9 skipped", 877.3)),
+    ("== 2 passed, 1 skipped in 57.1s ==\nlater\n== 3 passed in 1.25s ==\n", ("3 passed", 1.25)),
+])
+def test_pytest_summary_is_the_last_summary_line(log, want):
+    assert st.pytest_summary(log) == want
+
+
+def test_a_log_without_a_summary_is_refused():
+    with pytest.raises(ValueError, match="no pytest summary"):
+        st.pytest_summary("ImportError: no module named jax\n")
+
+
+def _run(pair, suite, pytest_s, user_s):
+    return {"pair": pair, "suite": suite, "pytest_s": pytest_s, "make_test_s": pytest_s + 20,
+            "user_s": user_s}
+
+
+def test_shares_per_pair_and_over_both_orders_by_hand():
+    runs = [_run(0, st.NOW, 400, 800), _run(0, st.BEFORE, 1000, 1600),
+            _run(1, st.BEFORE, 800, 1600), _run(1, st.NOW, 500, 800),
+            _run(2, st.NOW, 450, 900)]  # pair 3 unfinished: left out
+    s = st.shares(runs)
+    assert sorted(s["pairs"]) == [0, 1]
+    assert s["pairs"][0]["pytest_s"] == pytest.approx(0.4)
+    assert s["pairs"][1]["pytest_s"] == pytest.approx(0.625)
+    assert s["pairs"][0]["make_test_s"] == pytest.approx(420 / 1020)
+    assert s["pairs"][1]["user_s"] == pytest.approx(0.5)
+    assert list(s["balanced"]) == ["1,2"]
+    assert s["balanced"]["1,2"]["pytest_s"] == pytest.approx(900 / 1800)
+    assert s["median_pytest"] == pytest.approx((0.4 + 0.625) / 2)
+    assert st.shares([])["median_pytest"] is None
+
+
+def test_machine_text_names_the_cpu_kind_and_openblas():
+    amd = {"model": "AMD EPYC", "cores": 2, "isa": "AVX2+FMA", "amx_bf16": False}
+    intel = {"model": "Intel Xeon", "cores": 2, "isa": "AVX-512", "amx_bf16": True}
+    assert st.machine_text(amd, None) == ("a 2-core AMD EPYC (AVX2, no AVX-512), "
+                                          "OPENBLAS_CORETYPE not set")
+    assert st.machine_text(intel, "Haswell") == ("a 2-core Intel Xeon (AVX-512, AMX-BF16), "
+                                                 "OPENBLAS_CORETYPE=Haswell")
+
+
+def test_the_clones_do_not_use_this_virtual_environment(tmp_path):
+    env = {"VIRTUAL_ENV": str(tmp_path), "PATH": f"{tmp_path}/bin:/usr/bin", "HOME": "/root"}
+    got = st.clean_env(env, prefix=str(tmp_path))
+    assert got == {"PATH": "/usr/bin", "HOME": "/root"}
+
+
+def _git(*args, cwd):
+    subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=cwd,
+                   check=True, capture_output=True)
+
+
+@pytest.fixture()
+def repo(tmp_path):
+    """Two commits whose 'suite' (``sh suite.sh``) prints a pytest summary: before 8 s,
+    now 2 s; every run appends its commit's name to ``runs.txt`` outside the clones."""
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    _git("init", "-q", cwd=repo)
+    for name, line in (("before", "1 failed, 3 passed in 8.00s"), ("now", "5 passed in 2.00s")):
+        (repo / "suite.sh").write_text(f"echo {name} >> {tmp_path}/runs.txt\necho '{line}'\n")
+        _git("add", "suite.sh", cwd=repo)
+        _git("commit", "-q", "-m", name, cwd=repo)
+        _git("tag", name, cwd=repo)
+    return repo
+
+
+def _argv(repo, out, *more):
+    return ["--repo", str(repo), "--before", "before", "--now", "now", "--command",
+            "sh suite.sh", "--out", str(out), "--probe-interval", "0.01", *more]
+
+
+def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp_path):
+    out = tmp_path / "timing.json"
+    record = tmp_path / "suite_times.json"
+    record.write_text(json.dumps({"runs": [], "other_machines": [{"machine": "older"}]}))
+    assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record))) == 0
+    assert (tmp_path / "runs.txt").read_text().split() == ["now", "before", "before", "now"]
+    result = json.loads(out.read_text())
+    assert [(r["pair"], r["suite"]) for r in result["runs"]] == st.run_order(2)
+    before = next(r for r in result["runs"] if r["suite"] == st.BEFORE)
+    assert (before["tests"], before["pytest_s"]) == ("1 failed, 3 passed", 8.0)
+    assert result["shares"]["pairs"]["0"]["pytest_s"] == pytest.approx(0.25)
+    assert result["shares"]["balanced"]["1,2"]["pytest_s"] == pytest.approx(0.25)
+    assert (out.parent / "timing" / "0-now.log").read_text().strip() == "5 passed in 2.00s"
+    # The record gains the two pairs, newest first, before what it held.
+    entries = json.loads(record.read_text())["other_machines"]
+    assert [e.get("machine") for e in entries][-1] == "older" and len(entries) == 3
+    assert "pair 2 of 2" in entries[0]["what"] and "the suite before first" in entries[0]["what"]
+    assert [r["suite"] for r in entries[0]["runs"]] == [st.BEFORE, st.NOW]
+
+    # Killed after its first run: started again, it runs only the three others.
+    (tmp_path / "runs.txt").unlink()
+    result["runs"] = result["runs"][:1]
+    out.write_text(json.dumps(result))
+    assert st.main(_argv(repo, out, "--pairs", "2")) == 0
+    assert (tmp_path / "runs.txt").read_text().split() == ["before", "before", "now"]
+    assert len(json.loads(out.read_text())["runs"]) == 4
+    # Other settings: refused, the file kept.
+    assert st.main(_argv(repo, out, "--pairs", "4")) == 2
+    assert len(json.loads(out.read_text())["runs"]) == 4
+
+
+def test_a_suite_that_does_not_finish_names_its_log(repo, tmp_path):
+    out = tmp_path / "t.json"
+    argv = _argv(repo, out, "--pairs", "1")
+    argv[argv.index("sh suite.sh")] = "echo 'ImportError: jax'; exit 3"
+    with pytest.raises(RuntimeError, match=r"ended \(3\) without finishing.*0-now\.log"):
+        st.main(argv)
+
+
+def test_an_unknown_commit_is_refused(repo, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        st.main(["--repo", str(repo), "--before", "nosuch", "--out", str(tmp_path / "t.json")])
+    assert "not a commit of" in capsys.readouterr().err
