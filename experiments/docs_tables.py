@@ -647,56 +647,82 @@ def _sec4a_categories(dataset: str) -> Callable[[Path], str]:
 
 # ----------------------------------------------------------------------------- test suite
 
+def _before_run(runs: Sequence[Mapping]) -> Mapping:
+    """The suite before wherever it stands (a pair run in the other order lists the suite now
+    first)."""
+    return next((r for r in runs if r["suite"] == "before"), runs[0])
+
+
+def suite_measurement(m: Mapping) -> list[str]:
+    """The lines of one ``python -m experiments.suite_timing`` measurement: its runs in the
+    order they ran, each pair's share and the share summed over two pairs in opposite
+    orders."""
+    rows = ["| pair | suite | tests | pytest wall | `make test` wall | user CPU | probe |",
+            "|---|---|---|---|---|---|---|"]
+    rows += [f"| {r['pair'] + 1} | {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
+             f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s | "
+             + (f"{r['probe_s']:.3f} s |" if r.get("probe_s") is not None else "- |")
+             for r in m["runs"]]
+    shares = m["shares"]
+    per_pair = ", ".join(f"pair {int(p) + 1} {100 * s['pytest_s']:.1f} %"
+                         for p, s in sorted(shares["pairs"].items(), key=lambda kv: int(kv[0])))
+    text = f"The suite now against the suite before, pytest wall: {per_pair}"
+    for name, s in shares["balanced"].items():
+        text += (f"; pairs {name.replace(',', ' and ')} summed (one in each order) "
+                 f"{100 * s['pytest_s']:.1f} % of the pytest wall, "
+                 f"{100 * s['make_test_s']:.1f} % of `make test`'s, "
+                 f"{100 * s['user_s']:.1f} % of the user CPU")
+    settings = m["settings"]
+    return [*rows, "", text + ".", "",
+            f"Measured on {m['machine']}, with `python -m experiments.suite_timing --before "
+            f"<the suite before> --pairs {settings['pairs']}`: fresh clones running "
+            f"`{settings['command']}` one after the other, cold, nothing else running; the "
+            f"probe is the median CPU time of a fixed pure-Python loop timed every "
+            f"{settings['probe_interval_s']:g} s during the run: it rises when the host is "
+            "busier."]
+
+
 def suite_times_table(data: Mapping | None) -> str:
-    """The suite's times before and now (cold, warm) and what a cold run spends making JAX
-    programs (``experiments/results/suite_times.json``)."""
+    """The suite's times now against before: the newest ``experiments.suite_timing``
+    measurement, what a cold run spends making JAX programs, the old suite's tests alone, and
+    one row per earlier pair (``experiments/results/suite_times.json``)."""
     if not data:
         return "_No suite timing is committed under `experiments/results/`._\n"
-
-    def before_run(runs) -> Mapping:
-        # The suite before wherever it stands: a pair run in the other order lists the suite
-        # now first.
-        return next((r for r in runs if r["suite"] == "before"), runs[0])
-
-    def table(runs) -> tuple[list[str], str]:
-        rows = ["| suite | tests | pytest wall | `make test` wall | user CPU |",
-                "|---|---|---|---|---|"]
-        rows += [f"| {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
-                 f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s |" for r in runs]
-        before = before_run(runs)
-        return rows, ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before['pytest_s']:.0f} %"
-                               for r in runs if r is not before)
-
-    def extras(record) -> list[str]:
-        out = []
-        again = record.get("repeat")  # the same pair measured again on the same machine
-        if again:
-            before = before_run(again["runs"])["pytest_s"]
-            out += ["", f"The same pair again ({again['what']}): " + ", ".join(
-                f"{r['suite']} {r['pytest_s']:.0f} s" for r in again["runs"])
-                + ", so " + ", ".join(f"{r['suite']} {100 * r['pytest_s'] / before:.0f} %"
-                                      for r in again["runs"] if r["suite"] != "before")
-                + " of the suite before."]
-        same = record.get("same_tests")  # the old suite's own tests, run on the code now
-        if same:
-            out += ["", f"The tests the suite before had, alone ({same['what']}): "
-                    f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
-                    f"{same['before_pytest_s']:.0f} s for the suite before in the same "
-                    f"script, {100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
-        return out
-
-    lines, shares = table(data["runs"])
+    measurements = data.get("measurements") or []
+    lines = suite_measurement(measurements[0]) + [""] if measurements else []
     prof = data["profile"]
     jax = prof["jax_s"]
-    lines += ["", f"Pytest wall against the suite before: {shares}. A cold run's workers "
-              f"spent {sum(jax.values()):.0f} s of their {prof['user_s']:.0f} s of CPU making "
-              f"JAX programs (tracing {jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, "
-              f"XLA's compile {jax['compile']:.0f} s; the timing plugin below).", "",
-              f"Measured on {data['machine']}; {data['what']}.", *extras(data)]
-    for other in data.get("other_machines", ()):  # the same pair on another CPU kind
-        rows, shares = table(other["runs"])
-        lines += ["", f"On {other['machine']} ({other['what']}):", "", *rows,
-                  "", f"Pytest wall against the suite before: {shares}.", *extras(other)]
+    lines += [f"A cold run's workers spent {sum(jax.values()):.0f} s of their "
+              f"{prof['user_s']:.0f} s of CPU making JAX programs (tracing {jax['trace']:.0f} s, "
+              f"lowering {jax['lower']:.0f} s, XLA's compile {jax['compile']:.0f} s; the timing "
+              "plugin below)."]
+    records = [data, *data.get("other_machines", ())]
+    same = next((r["same_tests"] for r in records if r.get("same_tests")), None)
+    if same:  # the old suite's own tests, run on the code now
+        lines += ["", f"The tests the suite before had, alone ({same['what']}): "
+                  f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
+                  f"{same['before_pytest_s']:.0f} s for the suite before in the same script, "
+                  f"{100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
+    # Newest first: the record's own pair and the other pairs each carry their date (a
+    # stable sort keeps the record's own pair first among those of its date).
+    pairs = [(r["machine"], runs) for r in sorted(records, key=lambda r: r["date"], reverse=True)
+             for runs in (r["runs"], (r.get("repeat") or {}).get("runs")) if runs]
+    pairs = [(m["machine"], [r for r in m["runs"] if r["pair"] == p])
+             for m in measurements[1:] for p in sorted({r["pair"] for r in m["runs"]})] + pairs
+    if pairs:
+        lines += ["", "Earlier pairs, newest first, of earlier states of the suite as well "
+                  "(each described in the record):", "",
+                  "| machine | first | before | now, cold | now / before | now, warm / before |",
+                  "|---|---|---|---|---|---|"]
+        for machine, runs in pairs:
+            before = _before_run(runs)
+            by = {r["suite"]: r for r in runs}
+            cold, warm = by.get("now, cold") or by.get("now"), by.get("now, warm")
+            cold_share, warm_share = (f"{100 * r['pytest_s'] / before['pytest_s']:.0f} %"
+                                      if r else "-" for r in (cold, warm))
+            lines.append(f"| {machine} | {runs[0]['suite'].split(',')[0]} | "
+                         f"{before['pytest_s']:.0f} s | "
+                         f"{cold['pytest_s']:.0f} s | {cold_share} | {warm_share} |")
     return "\n".join(lines) + "\n"
 
 

@@ -15,8 +15,9 @@ median probe says whether the host moved between two runs of a pair (a shared ho
     python -m experiments.suite_timing ... --record experiments/results/suite_times.json
 
 A killed measurement started again with the same arguments keeps the runs it finished and
-runs the rest. ``--record`` adds each pair to the committed record (``other_machines``,
-newest first) that ``python -m experiments.docs_tables`` renders into ``docs/testing.md``.
+runs the rest. ``--record`` adds the measurement to the committed record
+(``experiments/results/suite_times.json``, ``measurements``, newest first), whose newest
+measurement ``python -m experiments.docs_tables`` renders into ``docs/testing.md``.
 """
 
 from __future__ import annotations
@@ -180,25 +181,6 @@ def time_run(repo: Path, commit: str, clone: Path, command: str, log: Path,
             "sys_s": round(after.ru_stime - before.ru_stime, 1), "exit_status": code}
 
 
-def record_entries(result: Mapping) -> list[dict]:
-    """One entry per finished pair for ``suite_times.json``'s ``other_machines``, in the
-    record's form, the newest pair first."""
-    out = []
-    for p, share in sorted(shares(result["runs"])["pairs"].items(), reverse=True):
-        runs = [r for r in result["runs"] if r["pair"] == p]
-        probes = ", ".join(f"{r['suite']} {r['probe_s']} s" for r in runs if r.get("probe_s"))
-        out.append({
-            "machine": result["machine"], "date": result["date"],
-            "what": (f"python -m experiments.suite_timing, pair {p + 1} of {result['pairs']}: "
-                     f"fresh clones running {result['command']}, cold, one after the other, "
-                     f"the suite {'now' if runs[0]['suite'] == NOW else 'before'} first; "
-                     f"median probe {probes}; the suite now {100 * share['pytest_s']:.1f} % "
-                     "of the suite before's pytest wall"),
-            "runs": [{k: r[k] for k in ("suite", "code", "tests", "pytest_s", "make_test_s",
-                                        "user_s")} for r in runs]})
-    return out
-
-
 def _settings(args, now: str, before: str, coretype: str | None) -> dict:
     return {"repo": str(args.repo.resolve()), "command": args.command, "now": now,
             "before": before, "pairs": args.pairs,
@@ -227,7 +209,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--probe-interval", type=float, default=15.0,
                         help="seconds between the probe's timings (default 15)")
     parser.add_argument("--record", type=Path, default=None,
-                        help="add the pairs to this suite_times.json (other_machines)")
+                        help="add the measurement to this record (suite_times.json's "
+                             "measurements, newest first)")
     args = parser.parse_args(argv)
     if args.pairs < 1:
         parser.error(f"--pairs must be at least 1, not {args.pairs}")
@@ -283,10 +266,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pairs {name.replace(',', ' and ')} summed (both orders): "
               f"{100 * s['pytest_s']:.1f} % of the pytest wall")
     if args.record is not None:
-        record = json.loads(args.record.read_text())
-        record["other_machines"] = [*record_entries(result), *record.get("other_machines", ())]
-        files.write_json(args.record, record)
-        print(f"added {len(summary['pairs'])} pairs to {args.record}")
+        record = json.loads(args.record.read_text()) if args.record.exists() else {}
+        record["measurements"] = [result, *record.get("measurements", ())]
+        files.write_json(args.record, record, indent=1)  # the record's own layout
+        print(f"added the measurement to {args.record}")
     return 0
 
 

@@ -342,62 +342,66 @@ def test_label_scale_table_has_each_size_its_machine_and_the_per_frame_spread():
             "on 2 cores, AMD EPYC.") in text
 
 
-def test_suite_times_table_gives_each_run_against_the_suite_before_and_the_jax_share():
+def _measurement(machine, pytest_s):
+    """A suite_timing result as its file holds it: pairs of (now, before) pytest seconds."""
+    from experiments import suite_timing
+
+    order = suite_timing.run_order(len(pytest_s))
+    runs = [{"pair": p, "suite": s, "code": "abc1234", "tests": "9 passed",
+             "pytest_s": pytest_s[p][s == suite_timing.BEFORE],
+             "make_test_s": pytest_s[p][s == suite_timing.BEFORE] + 20.0,
+             "user_s": 2 * pytest_s[p][s == suite_timing.BEFORE], "probe_s": 0.17}
+            for p, s in order]
+    result = {"settings": {"pairs": len(pytest_s), "command": "make test",
+                           "probe_interval_s": 15.0},
+              "date": "2030-01-03", "machine": machine, "runs": runs,
+              "shares": suite_timing.shares(runs)}
+    return json.loads(json.dumps(result))
+
+
+def test_suite_times_table_gives_the_newest_measurement_and_one_row_per_earlier_pair():
     runs = [{"suite": s, "code": "abc", "tests": "9 passed", "pytest_s": p, "make_test_s": p + 4,
-             "user_s": 2 * p} for s, p in (("before", 400.0), ("now", 300.0))]
-    text = docs_tables.suite_times_table({
-        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
-        "profile": {"pytest_s": 290.0, "user_s": 500.0,
-                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}}})
-    assert "| now | 9 passed | 300 s | 304 s | 600 s |" in text
-    assert "Pytest wall against the suite before: now 75 %." in text
+             "user_s": 2 * p} for s, p in (("before", 400.0), ("now, cold", 300.0),
+                                           ("now, warm", 280.0))]
+    record = {"date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+              "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                          "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}}}
+    text = docs_tables.suite_times_table(record)
     assert "spent 100 s of their 500 s of CPU making JAX programs" in text
-    assert "Measured on AMD EPYC; fresh clones." in text
-    assert "2030" not in text  # the measurement's date stays in the record
-    assert "On " not in text  # one machine only
-    intel = [dict(r, pytest_s=2 * r["pytest_s"]) for r in runs[:1]] + [
-        dict(runs[1], pytest_s=700.0, make_test_s=710.0, user_s=1400.0)]
-    text = docs_tables.suite_times_table({
-        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
-        "profile": {"pytest_s": 290.0, "user_s": 500.0,
-                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
-        "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
-                            "runs": intel}]})
-    assert "On an Intel Xeon (again):" in text and "2030" not in text
-    assert "| now | 9 passed | 700 s | 710 s | 1400 s |" in text
-    assert "Pytest wall against the suite before: now 88 %." in text  # 700 / 800
-    assert "The tests the suite before had" not in text  # no such run recorded
+    assert "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |" in text
+    assert "| pair |" not in text and "The tests the suite before had" not in text
+    assert "2030" not in text and "abc" not in text  # dates and codes stay in the record
+    # Another machine's pair (newer), run with the suite now first; the record's own pair
+    # again; the old suite's tests alone.
+    again = {"what": "in the other order", "runs": [dict(runs[1], pytest_s=330.0),
+                                                      dict(runs[0], pytest_s=440.0)]}
     same = {"what": "the ids both collect", "tests": "8 passed", "pytest_s": 150.0,
             "before_pytest_s": 420.0}
-    text = docs_tables.suite_times_table({
-        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
-        "profile": {"pytest_s": 290.0, "user_s": 500.0,
-                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
-        "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
-                            "runs": intel, "same_tests": same}]})
+    intel = {"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
+             "runs": [dict(runs[1], pytest_s=700.0), dict(runs[0], pytest_s=800.0)]}
+    record = dict(record, repeat=again, same_tests=same, other_machines=[intel])
+    text = docs_tables.suite_times_table(record)
+    rows = [line for line in text.splitlines() if line.startswith("| ") and " s |" in line]
+    assert rows == ["| an Intel Xeon | now | 800 s | 700 s | 88 % | - |",
+                    "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |",
+                    "| AMD EPYC | now | 440 s | 330 s | 75 % | - |"]
     assert ("The tests the suite before had, alone (the ids both collect): 8 passed in 150 s "
             "of pytest against 420 s for the suite before in the same script, 36 %.") in text
-    assert "The same pair again" not in text  # no repeat recorded
-    # The machine's own pair measured again, and its old tests alone, as for the others.
-    again = {"what": "in the other order", "runs": [
-        dict(runs[1], pytest_s=330.0), dict(runs[0], pytest_s=440.0)]}
-    text = docs_tables.suite_times_table({
-        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
-        "profile": {"pytest_s": 290.0, "user_s": 500.0,
-                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
-        "repeat": again, "same_tests": same})
-    assert ("Measured on AMD EPYC; fresh clones.\n\nThe same pair again (in the other order): "
-            "now 330 s, before 440 s, so now 75 % of the suite before.") in text
-    assert "8 passed in 150 s of pytest against 420 s" in text
-    # A pair run with the suite now first is still measured against the suite before.
-    text = docs_tables.suite_times_table({
-        "date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
-        "profile": {"pytest_s": 290.0, "user_s": 500.0,
-                    "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}},
-        "other_machines": [{"machine": "an Intel Xeon", "date": "2030-01-02",
-                            "what": "now first", "runs": again["runs"]}]})
-    assert "| now | 9 passed | 330 s | 304 s | 600 s |\n| before |" in text
-    assert "Pytest wall against the suite before: now 75 %." in text.split("now first")[1]
+    # Two suite_timing measurements: the newest in full, the older one's pairs as rows.
+    newest = _measurement("a 2-core AMD EPYC", [(300.0, 600.0), (330.0, 600.0)])
+    older = _measurement("a 2-core Intel Xeon", [(250.0, 500.0)])
+    text = docs_tables.suite_times_table(dict(record, measurements=[newest, older]))
+    assert ("| 1 | now, cold | 9 passed | 300 s | 320 s | 600 s | 0.170 s |\n"
+            "| 1 | before | 9 passed | 600 s | 620 s | 1200 s | 0.170 s |\n"
+            "| 2 | before | 9 passed | 600 s | 620 s | 1200 s | 0.170 s |\n"
+            "| 2 | now, cold | 9 passed | 330 s | 350 s | 660 s | 0.170 s |") in text
+    assert ("The suite now against the suite before, pytest wall: pair 1 50.0 %, pair 2 55.0 %; "
+            "pairs 1 and 2 summed (one in each order) 52.5 % of the pytest wall, "
+            "54.0 % of `make test`'s, 52.5 % of the user CPU.") in text  # 670 / 1240
+    assert "Measured on a 2-core AMD EPYC, with `python -m experiments.suite_timing" in text
+    assert "| a 2-core Intel Xeon | now | 500 s | 250 s | 50 % | - |" in text.split(
+        "Earlier pairs")[1].splitlines()[4]  # the older measurement's pair, newest row
+    assert "2030" not in text and "abc" not in text
     assert "No suite timing" in docs_tables.suite_times_table(None)
 
 

@@ -95,7 +95,7 @@ def _argv(repo, out, *more):
 def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp_path):
     out = tmp_path / "timing.json"
     record = tmp_path / "suite_times.json"
-    record.write_text(json.dumps({"runs": [], "other_machines": [{"machine": "older"}]}))
+    record.write_text(json.dumps({"runs": [], "measurements": [{"machine": "older"}]}))
     assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record))) == 0
     assert (tmp_path / "runs.txt").read_text().split() == ["now", "before", "before", "now"]
     result = json.loads(out.read_text())
@@ -105,11 +105,9 @@ def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp
     assert result["shares"]["pairs"]["0"]["pytest_s"] == pytest.approx(0.25)
     assert result["shares"]["balanced"]["1,2"]["pytest_s"] == pytest.approx(0.25)
     assert (out.parent / "timing" / "0-now.log").read_text().strip() == "5 passed in 2.00s"
-    # The record gains the two pairs, newest first, before what it held.
-    entries = json.loads(record.read_text())["other_machines"]
-    assert [e.get("machine") for e in entries][-1] == "older" and len(entries) == 3
-    assert "pair 2 of 2" in entries[0]["what"] and "the suite before first" in entries[0]["what"]
-    assert [r["suite"] for r in entries[0]["runs"]] == [st.BEFORE, st.NOW]
+    # The record gains the measurement, newest first, and keeps what it held.
+    record = json.loads(record.read_text())
+    assert record["measurements"] == [result, {"machine": "older"}] and record["runs"] == []
 
     # Killed after its first run: started again, it runs only the three others.
     (tmp_path / "runs.txt").unlink()
