@@ -667,6 +667,11 @@ def suite_measurement(m: Mapping) -> list[str]:
     per_pair = ", ".join(f"pair {int(p) + 1} {100 * s['pytest_s']:.1f} %"
                          for p, s in sorted(shares["pairs"].items(), key=lambda kv: int(kv[0])))
     text = f"The suite now against the suite before, pytest wall: {per_pair}"
+    warm = [(p, s["warm_pytest_s"]) for p, s in sorted(shares["pairs"].items(),
+                                                       key=lambda kv: int(kv[0]))
+            if "warm_pytest_s" in s]
+    if warm:  # the same clone again, right after its cold run
+        text += "; warm, " + ", ".join(f"pair {int(p) + 1} {100 * w:.1f} %" for p, w in warm)
     for name, s in shares["balanced"].items():
         text += (f"; pairs {name.replace(',', ' and ')} summed (one in each order) "
                  f"{100 * s['pytest_s']:.1f} % of the pytest wall, "

@@ -42,7 +42,7 @@ from experiments.benchmark.stats import cpu_peak
 from rp_jax import files
 
 CHECKOUT = Path(__file__).resolve().parents[1]
-NOW, BEFORE = "now, cold", "before"
+NOW, WARM, BEFORE = "now, cold", "now, warm", "before"
 # pytest's last line: "1 failed, 745 passed, 9 skipped in 877.30s (0:14:37)", with -q or
 # between "=" rules without it.
 _SUMMARY = re.compile(r"^=*\s*((?:\d+ [a-z]+(?:, )?)+) in ([\d.]+)s\b", re.MULTILINE)
@@ -79,7 +79,8 @@ def machine_text(cpu: Mapping, coretype: str | None) -> str:
 def shares(runs: Sequence[Mapping]) -> dict:
     """The code now against the code before: per pair and summed over each two pairs in
     opposite orders (now, before, before, now), for pytest's wall, ``make test``'s wall and
-    user CPU; ``median_pytest`` over the pairs. Pairs are numbered from 0 in ``pairs`` and
+    user CPU (and ``warm_pytest_s``, a warm run's pytest wall, where the pair has one);
+    ``median_pytest`` over the pairs. Pairs are numbered from 0 in ``pairs`` and
     from 1 in ``balanced``'s names (``"1,2"``); pairs without both runs are left out."""
     by_pair: dict[int, dict[str, Mapping]] = {}
     for r in runs:
@@ -90,8 +91,12 @@ def shares(runs: Sequence[Mapping]) -> dict:
         sums = {k: (sum(r[k] for r in now), sum(r[k] for r in before)) for k in keys}
         return {k: a / b if b else None for k, (a, b) in sums.items()}
 
-    done = sorted(p for p, two in by_pair.items() if set(two) == {NOW, BEFORE})
+    done = sorted(p for p, two in by_pair.items() if {NOW, BEFORE} <= set(two))
     pairs = {p: ratio([by_pair[p][NOW]], [by_pair[p][BEFORE]]) for p in done}
+    for p in done:  # the same clone again, right after its cold run (--warm)
+        if WARM in by_pair[p]:
+            warm, before = by_pair[p][WARM], by_pair[p][BEFORE]
+            pairs[p]["warm_pytest_s"] = warm["pytest_s"] / before["pytest_s"]
     balanced = {f"{p + 1},{p + 2}": ratio([by_pair[p][NOW], by_pair[p + 1][NOW]],
                                       [by_pair[p][BEFORE], by_pair[p + 1][BEFORE]])
                 for p in done if p % 2 == 0 and p + 1 in pairs}
@@ -152,39 +157,46 @@ def _git(*args: str, cwd: Path) -> str:
                           text=True).stdout.strip()
 
 
-def time_run(repo: Path, commit: str, clone: Path, command: str, log: Path,
-             env: Mapping[str, str]) -> dict:
-    """Clone ``repo`` into ``clone`` (removed first and after), check out ``commit``, run
-    ``command`` there with its output in ``log``: its wall and CPU seconds (this process's
-    waited-for children, ``make`` and everything below it) and pytest's summary."""
+def time_runs(repo: Path, commit: str, clone: Path, command: str, logs: Sequence[Path],
+              env: Mapping[str, str], started=lambda k: None) -> list[dict]:
+    """Clone ``repo`` into ``clone`` (removed first and after), check out ``commit`` and run
+    ``command`` there once per log, each run's output in its log (``started(k)`` is called
+    before run k): each run's wall and CPU seconds (this process's waited-for children,
+    ``make`` and everything below it) and pytest's summary."""
     shutil.rmtree(clone, ignore_errors=True)
     subprocess.run(["git", "clone", "--quiet", str(repo), str(clone)], check=True)
+    runs = []
     try:
         _git("checkout", "--quiet", commit, cwd=clone)
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        start = time.monotonic()
-        with files.replacing(log) as tmp, open(tmp, "w") as out:
-            code = subprocess.run(command, shell=True, cwd=clone, env=dict(env), stdout=out,
-                                  stderr=subprocess.STDOUT).returncode
-        wall = time.monotonic() - start
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        for k, log in enumerate(logs):
+            started(k)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.monotonic()
+            with files.replacing(log) as tmp, open(tmp, "w") as out:
+                code = subprocess.run(command, shell=True, cwd=clone, env=dict(env),
+                                      stdout=out, stderr=subprocess.STDOUT).returncode
+            wall = time.monotonic() - start
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            try:
+                tests, pytest_s = pytest_summary(log.read_text(errors="replace"))
+            except ValueError as e:
+                raise RuntimeError(f"{command!r} at {commit[:7]} ended ({code}) without "
+                                   f"finishing the suite: {e}; its output is {log}") from None
+            runs.append({"code": commit[:7], "tests": tests, "pytest_s": round(pytest_s, 1),
+                         "make_test_s": round(wall, 1),
+                         "user_s": round(after.ru_utime - before.ru_utime, 1),
+                         "sys_s": round(after.ru_stime - before.ru_stime, 1),
+                         "exit_status": code})
     finally:
         shutil.rmtree(clone, ignore_errors=True)
-    try:
-        tests, pytest_s = pytest_summary(log.read_text(errors="replace"))
-    except ValueError as e:
-        raise RuntimeError(f"{command!r} at {commit[:7]} ended ({code}) without finishing "
-                           f"the suite: {e}; its output is {log}") from None
-    return {"code": commit[:7], "tests": tests, "pytest_s": round(pytest_s, 1),
-            "make_test_s": round(wall, 1),
-            "user_s": round(after.ru_utime - before.ru_utime, 1),
-            "sys_s": round(after.ru_stime - before.ru_stime, 1), "exit_status": code}
+    return runs
 
 
 def _settings(args, now: str, before: str, coretype: str | None) -> dict:
     return {"repo": str(args.repo.resolve()), "command": args.command, "now": now,
             "before": before, "pairs": args.pairs,
-            "coretype": coretype, "probe_interval_s": args.probe_interval}
+            "coretype": coretype, "probe_interval_s": args.probe_interval,
+            **({"warm": True} if args.warm else {})}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -208,6 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="where the clones go (default: a temporary folder)")
     parser.add_argument("--probe-interval", type=float, default=15.0,
                         help="seconds between the probe's timings (default 15)")
+    parser.add_argument("--warm", action="store_true",
+                        help="run the suite now again in the same clone right after its cold "
+                             "run (warm: its compilation cache and bytecode kept)")
     parser.add_argument("--record", type=Path, default=None,
                         help="add the measurement to this record (suite_times.json's "
                              "measurements, newest first)")
@@ -239,29 +254,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(dir=args.clones) as clones, \
             Probe(args.probe_interval) as probe:
         for i, (pair, suite) in enumerate(order):
-            if (pair, suite) in done:
+            suites = [NOW, WARM] if suite == NOW and args.warm else [suite]
+            if all((pair, s) in done for s in suites):
                 continue
+            # A cold run whose warm run was killed runs again with it: the clone is gone.
+            result["runs"] = [r for r in result["runs"]
+                              if r["pair"] != pair or r["suite"] not in suites]
             commit = now if suite == NOW else before
-            label = f"{pair}-{suite.split(',')[0]}"
-            print(f"[{i + 1}/{len(order)}] pair {pair + 1}, the suite {suite} ({commit[:7]}): "
-                  f"{args.command} in a fresh clone", file=sys.stderr, flush=True)
-            probe.label = label
-            run = time_run(repo, commit, Path(clones) / label, args.command,
-                           logs / f"{label}.log", clean_env(os.environ))
+            labels = [f"{pair}-{s.split(',')[0]}" + ("-warm" if s == WARM else "")
+                      for s in suites]
+
+            def started(k, suites=suites, labels=labels, i=i, pair=pair, commit=commit):
+                probe.label = labels[k]
+                print(f"[{i + 1}/{len(order)}] pair {pair + 1}, the suite {suites[k]} "
+                      f"({commit[:7]}): {args.command} in "
+                      + ("the same clone again" if k else "a fresh clone"),
+                      file=sys.stderr, flush=True)
+
+            runs = time_runs(repo, commit, Path(clones) / labels[0], args.command,
+                             [logs / f"{label}.log" for label in labels],
+                             clean_env(os.environ), started)
             probe.label = None
-            run = {"pair": pair, "suite": suite, **run, "probe_s": probe.median(label)}
-            result["runs"].append(run)
+            for s, label, run in zip(suites, labels, runs, strict=True):
+                run = {"pair": pair, "suite": s, **run, "probe_s": probe.median(label)}
+                result["runs"].append(run)
+                print(f"    {run['tests']} in {run['pytest_s']} s of pytest, "
+                      f"{run['make_test_s']} s of {args.command}, {run['user_s']} s user CPU",
+                      file=sys.stderr, flush=True)
             files.write_json(args.out, result)
-            print(f"    {run['tests']} in {run['pytest_s']} s of pytest, "
-                  f"{run['make_test_s']} s of {args.command}, {run['user_s']} s user CPU",
-                  file=sys.stderr, flush=True)
     summary = shares(result["runs"])
     result["shares"] = summary
     files.write_json(args.out, result)
     for p, s in summary["pairs"].items():
         user = f"{100 * s['user_s']:.1f} %" if s["user_s"] is not None else "-"
+        warm = (f"; warm {100 * s['warm_pytest_s']:.1f} %" if "warm_pytest_s" in s else "")
         print(f"pair {p + 1}: the suite now takes {100 * s['pytest_s']:.1f} % of the suite "
-              f"before's pytest wall ({user} of its user CPU)")
+              f"before's pytest wall ({user} of its user CPU){warm}")
     for name, s in summary["balanced"].items():
         print(f"pairs {name.replace(',', ' and ')} summed (both orders): "
               f"{100 * s['pytest_s']:.1f} % of the pytest wall")

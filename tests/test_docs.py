@@ -402,6 +402,12 @@ def test_suite_times_table_gives_the_newest_measurement_and_one_row_per_earlier_
     assert "| a 2-core Intel Xeon | now | 500 s | 250 s | 50 % | - |" in text.split(
         "Earlier pairs")[1].splitlines()[4]  # the older measurement's pair, newest row
     assert "2030" not in text and "abc" not in text
+    assert "warm" not in text.split("Earlier pairs")[0]  # no warm run measured
+    newest["runs"].insert(1, dict(newest["runs"][0], suite="now, warm", pytest_s=240.0))
+    newest["shares"]["pairs"]["0"]["warm_pytest_s"] = 0.4  # as suite_timing.shares gives it
+    text = docs_tables.suite_times_table(dict(record, measurements=[newest]))
+    assert "| 1 | now, warm | 9 passed | 240 s |" in text
+    assert "pair 2 55.0 %; warm, pair 1 40.0 %; pairs 1 and 2 summed" in text
     assert "No suite timing" in docs_tables.suite_times_table(None)
 
 

@@ -75,12 +75,16 @@ def _git(*args, cwd):
 @pytest.fixture()
 def repo(tmp_path):
     """Two commits whose 'suite' (``sh suite.sh``) prints a pytest summary: before 8 s,
-    now 2 s; every run appends its commit's name to ``runs.txt`` outside the clones."""
+    now 2 s (1.5 s run again in its clone); every run appends its commit's name to
+    ``runs.txt`` outside the clones."""
     repo = tmp_path / "repo"
     repo.mkdir()
     _git("init", "-q", cwd=repo)
+    now_again = "[ -e warm ] && { echo '6 passed in 1.50s'; exit; }; touch warm\n"
     for name, line in (("before", "1 failed, 3 passed in 8.00s"), ("now", "5 passed in 2.00s")):
-        (repo / "suite.sh").write_text(f"echo {name} >> {tmp_path}/runs.txt\necho '{line}'\n")
+        (repo / "suite.sh").write_text(f"echo {name} >> {tmp_path}/runs.txt\n"
+                                       + (now_again if name == "now" else "")
+                                       + f"echo '{line}'\n")
         _git("add", "suite.sh", cwd=repo)
         _git("commit", "-q", "-m", name, cwd=repo)
         _git("tag", name, cwd=repo)
@@ -119,6 +123,25 @@ def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp
     # Other settings: refused, the file kept.
     assert st.main(_argv(repo, out, "--pairs", "4")) == 2
     assert len(json.loads(out.read_text())["runs"]) == 4
+
+
+def test_warm_runs_the_suite_now_again_in_its_clone(repo, tmp_path):
+    out = tmp_path / "timing.json"
+    assert st.main(_argv(repo, out, "--pairs", "1", "--warm")) == 0
+    # The 'suite' writes a file into its clone: the warm run finds the cold run's.
+    assert (tmp_path / "runs.txt").read_text().split() == ["now", "now", "before"]
+    result = json.loads(out.read_text())
+    assert [r["suite"] for r in result["runs"]] == [st.NOW, st.WARM, st.BEFORE]
+    assert [r["tests"] for r in result["runs"]] == ["5 passed", "6 passed", "1 failed, 3 passed"]
+    assert result["shares"]["pairs"]["0"]["warm_pytest_s"] == pytest.approx(1.5 / 8)
+    # Killed during the warm run: its cold run is made again with it.
+    (tmp_path / "runs.txt").unlink()
+    result["runs"] = [r for r in result["runs"] if r["suite"] != st.WARM]
+    out.write_text(json.dumps(result))
+    assert st.main(_argv(repo, out, "--pairs", "1", "--warm")) == 0
+    assert (tmp_path / "runs.txt").read_text().split() == ["now", "now"]
+    assert sorted(r["suite"] for r in json.loads(out.read_text())["runs"]) == sorted(
+        [st.NOW, st.WARM, st.BEFORE])
 
 
 def test_a_suite_that_does_not_finish_names_its_log(repo, tmp_path):
