@@ -229,6 +229,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.pairs < 1:
         parser.error(f"--pairs must be at least 1, not {args.pairs}")
+    if args.out.suffix != ".json":
+        parser.error(f"--out {args.out}: a .json file (its runs' logs go beside it, in "
+                     f"{args.out.with_suffix('')})")
     repo = args.repo.resolve()
     try:
         now, before = (_git("rev-parse", "--verify", f"{c}^{{commit}}", cwd=repo)
@@ -241,7 +244,10 @@ def main(argv: Sequence[str] | None = None) -> int:
               "machine": machine_text(cpu_peak(), coretype), "pairs": args.pairs,
               "command": args.command, "runs": []}
     if args.out.exists():
-        earlier = json.loads(args.out.read_text())
+        try:
+            earlier = json.loads(args.out.read_text())
+        except (OSError, ValueError) as e:
+            parser.error(f"--out {args.out}: not a measurement this command wrote ({e})")
         if earlier.get("settings") != settings:
             print(f"{args.out} holds a measurement of other settings "
                   f"({earlier.get('settings')}); give another --out", file=sys.stderr)
@@ -295,7 +301,9 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{100 * s['pytest_s']:.1f} % of the pytest wall")
     if args.record is not None:
         record = json.loads(args.record.read_text()) if args.record.exists() else {}
-        record["measurements"] = [result, *record.get("measurements", ())]
+        # The same measurement recorded again (resumed, or recorded twice) replaces itself.
+        record["measurements"] = [result, *(m for m in record.get("measurements", ())
+                                            if m.get("settings") != settings)]
         files.write_json(args.record, record, indent=1)  # the record's own layout
         print(f"added the measurement to {args.record}")
     return 0

@@ -98,9 +98,9 @@ def _argv(repo, out, *more):
 
 def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp_path):
     out = tmp_path / "timing.json"
-    record = tmp_path / "suite_times.json"
-    record.write_text(json.dumps({"runs": [], "measurements": [{"machine": "older"}]}))
-    assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record))) == 0
+    record_file = tmp_path / "suite_times.json"
+    record_file.write_text(json.dumps({"runs": [], "measurements": [{"machine": "older"}]}))
+    assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record_file))) == 0
     assert (tmp_path / "runs.txt").read_text().split() == ["now", "before", "before", "now"]
     result = json.loads(out.read_text())
     assert [(r["pair"], r["suite"]) for r in result["runs"]] == st.run_order(2)
@@ -110,7 +110,7 @@ def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp
     assert result["shares"]["balanced"]["1,2"]["pytest_s"] == pytest.approx(0.25)
     assert (out.parent / "timing" / "0-now.log").read_text().strip() == "5 passed in 2.00s"
     # The record gains the measurement, newest first, and keeps what it held.
-    record = json.loads(record.read_text())
+    record = json.loads(record_file.read_text())
     assert record["measurements"] == [result, {"machine": "older"}] and record["runs"] == []
 
     # Killed after its first run: started again, it runs only the three others.
@@ -123,6 +123,11 @@ def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp
     # Other settings: refused, the file kept.
     assert st.main(_argv(repo, out, "--pairs", "4")) == 2
     assert len(json.loads(out.read_text())["runs"]) == 4
+    # Recorded again once finished: the record holds it once.
+    assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record_file))) == 0
+    assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record_file))) == 0
+    assert [m.get("machine") for m in json.loads(record_file.read_text())["measurements"]] == [
+        result["machine"], "older"]
 
 
 def test_warm_runs_the_suite_now_again_in_its_clone(repo, tmp_path):
@@ -152,7 +157,16 @@ def test_a_suite_that_does_not_finish_names_its_log(repo, tmp_path):
         st.main(argv)
 
 
-def test_an_unknown_commit_is_refused(repo, tmp_path, capsys):
+@pytest.mark.parametrize("argv, message", [
+    (["--before", "nosuch", "--out", "t.json"], "not a commit of"),
+    (["--before", "before", "--out", "t"], "a .json file"),
+    (["--before", "before", "--out", "bad.json"], "not a measurement this command wrote"),
+    (["--before", "before", "--pairs", "0"], "at least 1"),
+])
+def test_bad_arguments_are_refused(repo, tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.json").write_text("{half")
     with pytest.raises(SystemExit):
-        st.main(["--repo", str(repo), "--before", "nosuch", "--out", str(tmp_path / "t.json")])
-    assert "not a commit of" in capsys.readouterr().err
+        st.main(["--repo", str(repo), *argv])
+    assert message in capsys.readouterr().err
+    assert (tmp_path / "bad.json").read_text() == "{half"  # nothing of the user's rewritten
