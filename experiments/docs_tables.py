@@ -664,14 +664,13 @@ def suite_measurement(m: Mapping) -> list[str]:
              + (f"{r['probe_s']:.3f} s |" if r.get("probe_s") is not None else "- |")
              for r in m["runs"]]
     shares = m["shares"]
-    per_pair = ", ".join(f"pair {int(p) + 1} {100 * s['pytest_s']:.1f} %"
-                         for p, s in sorted(shares["pairs"].items(), key=lambda kv: int(kv[0])))
-    text = f"The suite now against the suite before, pytest wall: {per_pair}"
-    warm = [(p, s["warm_pytest_s"]) for p, s in sorted(shares["pairs"].items(),
-                                                       key=lambda kv: int(kv[0]))
+    pairs = sorted((int(p) + 1, s) for p, s in shares["pairs"].items())  # numbered from 1
+    text = ("The suite now against the suite before, pytest wall: "
+            + ", ".join(f"pair {p} {100 * s['pytest_s']:.1f} %" for p, s in pairs))
+    warm = [f"pair {p} {100 * s['warm_pytest_s']:.1f} %" for p, s in pairs
             if "warm_pytest_s" in s]
     if warm:  # the same clone again, right after its cold run
-        text += "; warm, " + ", ".join(f"pair {int(p) + 1} {100 * w:.1f} %" for p, w in warm)
+        text += "; warm, " + ", ".join(warm)
     for name, s in shares["balanced"].items():
         text += (f"; pairs {name.replace(',', ' and ')} summed (one in each order) "
                  f"{100 * s['pytest_s']:.1f} % of the pytest wall, "
@@ -722,7 +721,7 @@ def suite_times_table(data: Mapping | None) -> str:
         for machine, runs in pairs:
             before = _before_run(runs)
             by = {r["suite"]: r for r in runs}
-            cold, warm = by.get("now, cold") or by.get("now"), by.get("now, warm")
+            cold, warm = by["now, cold"], by.get("now, warm")
             cold_share, warm_share = (f"{100 * r['pytest_s'] / before['pytest_s']:.0f} %"
                                       if r else "-" for r in (cold, warm))
             lines.append(f"| {machine} | {runs[0]['suite'].split(',')[0]} | "

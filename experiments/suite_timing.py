@@ -241,8 +241,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     coretype = os.environ.get("OPENBLAS_CORETYPE") or None
     settings = _settings(args, now, before, coretype)
     result = {"settings": settings, "date": dt.date.today().isoformat(),
-              "machine": machine_text(cpu_peak(), coretype), "pairs": args.pairs,
-              "command": args.command, "runs": []}
+              "machine": machine_text(cpu_peak(), coretype), "runs": []}
     if args.out.exists():
         try:
             earlier = json.loads(args.out.read_text())
