@@ -96,11 +96,13 @@ def _argv(repo, out, *more):
             "sh suite.sh", "--out", str(out), "--probe-interval", "0.01", *more]
 
 
-def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp_path):
+def test_a_measurement_runs_the_pairs_in_alternating_order_and_resumes(repo, tmp_path, capsys):
     out = tmp_path / "timing.json"
     record_file = tmp_path / "suite_times.json"
     record_file.write_text(json.dumps({"runs": [], "measurements": [{"machine": "older"}]}))
     assert st.main(_argv(repo, out, "--pairs", "2", "--record", str(record_file))) == 0
+    # The docs' tables come from the record: the command says how to bring them up to date.
+    assert "python -m experiments.docs_tables" in capsys.readouterr().out
     assert (tmp_path / "runs.txt").read_text().split() == ["now", "before", "before", "now"]
     result = json.loads(out.read_text())
     assert [(r["pair"], r["suite"]) for r in result["runs"]] == st.run_order(2)
