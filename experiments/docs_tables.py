@@ -696,14 +696,17 @@ def suite_times_table(data: Mapping | None) -> str:
     lines = suite_measurement(measurements[0]) + [""] if measurements else []
     prof = data["profile"]
     jax = prof["jax_s"]
-    lines += [f"A cold run's workers spent {sum(jax.values()):.0f} s of their "
-              f"{prof['user_s']:.0f} s of CPU making JAX programs (tracing {jax['trace']:.0f} s, "
-              f"lowering {jax['lower']:.0f} s, XLA's compile {jax['compile']:.0f} s; the timing "
-              "plugin below)."]
+    # Each of these lines names its machine: the measurement above may be of another CPU.
+    lines += [f"On {data['machine']}, a cold run's workers spent {sum(jax.values()):.0f} s of "
+              f"their {prof['user_s']:.0f} s of CPU making JAX programs (tracing "
+              f"{jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, XLA's compile "
+              f"{jax['compile']:.0f} s; the timing plugin below)."]
     records = [data, *data.get("other_machines", ())]
-    same = next((r["same_tests"] for r in records if r.get("same_tests")), None)
-    if same:  # the old suite's own tests, run on the code now
-        lines += ["", f"The tests the suite before had, alone ({same['what']}): "
+    same_record = next((r for r in records if r.get("same_tests")), None)
+    if same_record:  # the old suite's own tests, run on the code now
+        same = same_record["same_tests"]
+        lines += ["", f"The tests the suite before had, alone, on {same_record['machine']} "
+                  f"({same['what']}): "
                   f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
                   f"{same['before_pytest_s']:.0f} s for the suite before in the same script, "
                   f"{100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]

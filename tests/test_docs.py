@@ -367,7 +367,8 @@ def test_suite_times_table_gives_the_newest_measurement_and_one_row_per_earlier_
               "profile": {"pytest_s": 290.0, "user_s": 500.0,
                           "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}}}
     text = docs_tables.suite_times_table(record)
-    assert "spent 100 s of their 500 s of CPU making JAX programs" in text
+    assert ("On AMD EPYC, a cold run's workers spent 100 s of their 500 s of CPU making JAX "
+            "programs") in text
     assert "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |" in text
     assert "| pair |" not in text and "The tests the suite before had" not in text
     assert "2030" not in text and "abc" not in text  # dates and codes stay in the record
@@ -385,7 +386,8 @@ def test_suite_times_table_gives_the_newest_measurement_and_one_row_per_earlier_
     assert rows == ["| an Intel Xeon | now | 800 s | 700 s | 88 % | - |",
                     "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |",
                     "| AMD EPYC | now | 440 s | 330 s | 75 % | - |"]
-    assert ("The tests the suite before had, alone (the ids both collect): 8 passed in 150 s "
+    assert ("The tests the suite before had, alone, on AMD EPYC (the ids both collect): "
+            "8 passed in 150 s "
             "of pytest against 420 s for the suite before in the same script, 36 %.") in text
     # Two suite_timing measurements: the newest in full, the older one's pairs as rows.
     newest = _measurement("a 2-core AMD EPYC", [(300.0, 600.0), (330.0, 600.0)])
