@@ -10,7 +10,7 @@ def test_what_collection_made_is_frozen_in_a_test_process():
     if conftest._collector_left_as_it_is():
         assert gc.get_freeze_count() == 0
     else:
-        # JAX, TensorFlow, OpenCV, the package and the tests' modules: far more than this.
+        # JAX, TensorFlow Datasets, OpenCV, the package and the tests' modules: far more than this.
         assert gc.get_freeze_count() > 50_000
 
 
