@@ -81,10 +81,11 @@ def pytest_collection_modifyitems(config, items):
 
 
 # Python's cyclic garbage collector walks every object of its oldest generation at each full
-# collection: in a worker that has imported JAX, TensorFlow Datasets, OpenCV, matplotlib and
-# the tests (about 400,000 objects) that was 5 to 7 s of each worker's CPU over a run, and
-# pytest's last collection at the end about a second more (experiments/results/
-# suite_times.md). What collection made lives as long as the worker, so it is moved out of
+# collection: in a worker holding what collecting the whole suite made (about 240,000
+# objects: JAX, TensorFlow Datasets, OpenCV, matplotlib, the package and the tests) and what
+# the tests made since, that was 5 to 7 s of each worker's CPU over a run, and pytest's last
+# collection at the end about a second more (experiments/results/suite_times.md). What
+# collection made lives as long as the worker, so it is moved out of
 # the collector's sight once collected (``gc.freeze``): reference counting still frees those
 # objects; only reference cycles among them would outlive their use, and those are modules,
 # classes and functions, which live as long as the process. ``RP_JAX_TEST_GC=default``
