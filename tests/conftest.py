@@ -45,7 +45,14 @@ if os.environ.get("RP_JAX_TEST_XLA_OPTIMIZE", "").strip().lower() not in ("1", "
                                                    if f not in _flags)])
 os.environ.setdefault("RP_JAX_NO_CPU_SETUP", "1")  # entry points called in tests keep this set-up
 
-if os.environ.get("RP_JAX_TEST_MALLOC", "").strip().lower() != "default":
+
+def _asked_for_default(variable: str) -> bool:
+    """Whether ``variable`` (``RP_JAX_TEST_MALLOC``, ``RP_JAX_TEST_GC``) asks the suite to
+    leave Python's or glibc's own setting as it is."""
+    return os.environ.get(variable, "").strip().lower() == "default"
+
+
+if not _asked_for_default("RP_JAX_TEST_MALLOC"):
     from rp_jax import platform  # noqa: E402
 
     os.environ["GLIBC_TUNABLES"] = platform.malloc_tunables(os.environ.get("GLIBC_TUNABLES", ""))
@@ -83,15 +90,14 @@ def pytest_collection_modifyitems(config, items):
 # Python's cyclic garbage collector walks every object of its oldest generation at each full
 # collection: in a worker holding what collecting the whole suite made (about 240,000
 # objects: JAX, TensorFlow Datasets, OpenCV, matplotlib, the package and the tests) and what
-# the tests made since, that was 5 to 7 s of each worker's CPU over a run, and pytest's last
-# collection at the end about a second more (experiments/results/suite_times.md). What
-# collection made lives as long as the worker, so it is moved out of
-# the collector's sight once collected (``gc.freeze``): reference counting still frees those
-# objects; only reference cycles among them would outlive their use, and those are modules,
-# classes and functions, which live as long as the process. ``RP_JAX_TEST_GC=default``
-# leaves the collector as it is.
+# the tests made since, its full collections took 5 to 7 s of each worker's CPU over a run
+# (experiments/results/suite_times.md). What collection made lives as long as the worker,
+# so it is moved out of the collector's sight once collected (``gc.freeze``): reference
+# counting still frees those objects; only reference cycles among them would outlive their
+# use, and those are modules, classes and functions, which live as long as the process.
+# ``RP_JAX_TEST_GC=default`` leaves the collector as it is.
 def _collector_left_as_it_is() -> bool:
-    return os.environ.get("RP_JAX_TEST_GC", "").strip().lower() == "default"
+    return _asked_for_default("RP_JAX_TEST_GC")
 
 
 def pytest_collection_finish(session):
