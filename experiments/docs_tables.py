@@ -10,8 +10,11 @@ block between two markers::
 and is rendered here from a result file committed under ``experiments/results/``: the Sec.
 IV-A runs (Sec. IV-A-1 / IV-A-2 of the paper: test MAE of the repeatability predictor against
 the baselines, one row per world seed, each its own rendered world, with the mean and the
-spread over the seeds), the benchmark, and map summarization (Sec. V, Fig. 11; rendered by
-that experiment's own ``report.tables_markdown`` when its result file is committed). Each
+spread over the seeds), the benchmark, map summarization (Sec. V, Fig. 11) and the test
+suite's times. Where a result file has a module of its own that writes it, that module
+renders it too (the benchmark's ``experiments.benchmark.report``, map summarization's
+``report.tables_markdown``, ``experiments.suite_timing``'s ``docs_block``): one home for
+each file's layout. Each
 table's caption names the run's command, date, machine and code version, so a figure can be
 traced to the run that made it (STYLE.md, "User documentation").
 
@@ -46,7 +49,6 @@ __all__ = [
     "BLOCKS",
     "check",
     "collect",
-    "label_scale_table",
     "render_blocks",
     "replace_blocks",
     "sec4a_by_source_table",
@@ -281,142 +283,6 @@ def demo_line(runs: Sequence[tuple[int, Mapping]]) -> str:
 
 # ----------------------------------------------------------------------------- others
 
-def benchmark_table(results: Mapping | None) -> str:
-    """The headline of ``experiments/results/benchmark.json``: per stage, our median and the
-    peer's, each with its variant, and the stage's ratio (median over interleaved rounds of
-    ours / peer in the same round; for times, the peer's time over ours: above 1, ours is
-    faster)."""
-    if not results:
-        return "_No benchmark result is committed (`experiments/results/benchmark.json`)._\n"
-    lines = ["| stage | unit | ours | peer | ratio |", "|---|---|---|---|---|"]
-
-    def peak(d: Mapping) -> str:
-        f = d.get("fraction_of_fp32_peak")
-        return f", {100 * f:.1f} % of FP32 peak" if f else ""
-
-    for stage, entry in results.items():
-        ours, peer = entry.get("ours"), entry.get("peer")
-        if not isinstance(ours, Mapping):
-            continue
-        unit = entry.get("unit", "")
-        if entry.get("headline_points"):
-            unit += f" ({entry['headline_points']:,} points)"
-        if ours.get("median") is None and "per_num_images" in ours:  # labelling: the largest
-            n, largest = max(ours["per_num_images"].items(), key=lambda kv: int(kv[0]))
-            lines.append(f"| {stage} | {unit} for {n} images | "
-                         f"{_num(largest['seconds']['median'])} | - | - |")
-            continue
-        if ours.get("median") is None:
-            continue
-        ratio = entry.get("ratio")
-        extra = ""
-        if isinstance(entry.get("ours_float32"), Mapping):
-            extra = f" (float32: {_num(entry['ours_float32']['median'])})"
-        lines.append(
-            f"| {stage} | {unit} | {_num(ours['median'])} `{ours.get('variant', '')}`{extra}"
-            f"{peak(ours)} | "
-            + (f"{_num(peer['median'])} `{peer.get('variant', '')}`{peak(peer)}" if peer else "-")
-            + f" | {f'{ratio:.2f}×' if ratio else '-'} |")
-        best = (ours.get("variants") or {}).get(ours.get("best_variant") or "")
-        if best and best["median"] > ours["median"]:
-            best_ratio = best.get("ratio_to_peer")
-            lines.append(f"| {stage}, fastest variant | {unit} | {_num(best['median'])} "
-                         f"`{ours['best_variant']}`{peak(best)} | | "
-                         + (f"{best_ratio:.2f}×" if best_ratio else "-") + " |")
-    started = sorted({e["started"] for e in results.values() if e.get("started")})
-    cpu = next((e["cpu"] for e in results.values() if e.get("cpu")), None) or {}
-    cores = next((e["cpu_count"] for e in results.values() if e.get("cpu_count")), None)
-    machine = cpu.get("model", "machine unknown") + (f", {cores} cores" if cores else "")
-    return ("\n".join(lines) + "\n\nRun: `python -m experiments.benchmark` (every stage, "
-            f"`--size full`); started {started[0] if started else 'date unknown'}; {machine}; "
-            "the code of the commit that added `experiments/results/benchmark.json`.\n")
-
-
-def benchmark_scaling(results: Mapping | None) -> str:
-    """How labelling (Sec. III-D) and map summarization (Sec. V-A) grow with their input,
-    from ``benchmark.json``'s ``groundtruth``, ``match`` and ``summarize`` stages."""
-    if not results:
-        return "_No benchmark result is committed._\n"
-    out = []
-    gt = (results.get("groundtruth") or {}).get("ours", {}).get("per_num_images")
-    if gt:
-        out += ["| images in a viewpoint | labelling, s (median) | peak memory, MB |",
-                "|---|---|---|"]
-        for n, e in sorted(gt.items(), key=lambda kv: int(kv[0])):
-            out.append(f"| {int(n):,} | {_num(e['seconds']['median'])} | "
-                       f"{e.get('peak_rss_mb', float('nan')):,.0f} |")
-        out.append("")
-    scaling = ((results.get("match") or {}).get("scaling") or {}).get("per_num_images")
-    if scaling:
-        out += ["| images in a viewpoint | all-pairs matching float32, s | bfloat16, s | "
-                "match arrays, MB | measured or extrapolated |", "|---|---|---|---|---|"]
-        for n, e in sorted(scaling.items(), key=lambda kv: int(kv[0])):
-            out.append(f"| {int(n):,} | {_num(e['float32']['seconds'])} | "
-                       f"{_num(e['bf16']['seconds'])} | {e['float32']['output_mb']:,.0f} | "
-                       f"{'measured' if e.get('measured') else 'extrapolated per image pair'} |")
-        out.append("")
-    summ = results.get("summarize") or {}
-    if summ.get("ours", {}).get("per_num_points"):
-        ours, peer = summ["ours"]["per_num_points"], (summ.get("peer") or {}).get(
-            "per_num_points", {})
-        out += ["| map points | ours, s | peak memory, MB | K-cover, s |", "|---|---|---|---|"]
-        for n, e in sorted(ours.items(), key=lambda kv: int(kv[0])):
-            k = peer.get(n)
-            out.append(f"| {int(n):,} | {_num(e['seconds']['median'])} | "
-                       f"{e.get('peak_mb', float('nan')):,.0f} | "
-                       f"{_num(k['seconds']['median']) if k else '-'} |")
-        out.append("")
-    return "\n".join(out).rstrip("\n") + "\n\nFrom the same run as the table above.\n"
-
-
-def label_scale_table(results: Mapping | None) -> str:
-    """The ``label_scale`` stage of ``benchmark.json``: one Webcam-like viewpoint labelled
-    at each size (Sec. III-D at the paper's scale), with when, where and under what load each
-    row was measured, and how the CPU cost per frame varies over the sizes."""
-    entry = (results or {}).get("label_scale") or {}
-    rows = entry.get("label_scale") or []
-    if not rows:
-        return "_No `label_scale` result is committed (`experiments/results/benchmark.json`)._\n"
-    out = ["| frames | CPU s | CPU s per frame | peak memory, MB | records | wall s | "
-           "load (1 min) | measured |", "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        out.append(f"| {r['frames']:,} | {r['cpu_s']:,.0f} | {r['cpu_s'] / r['frames']:.3f} | "
-                   f"{r['peak_rss_mb']:,.0f} | {r['records']:,} | {r['wall_s']:,.0f} | "
-                   f"{r.get('load_average_1min', float('nan')):.1f} | "
-                   f"{r.get('measured_at', '?').replace('T', ' ')} UTC, "
-                   f"{r.get('cpu_model', entry.get('cpu_model', '?'))} |")
-    per = [r["cpu_s"] / r["frames"] for r in rows]
-    out.append("")
-    out.append(f"CPU seconds per frame from {min(per):.3f} to {max(per):.3f} "
-               f"({max(per) / min(per) - 1:+.0%} from the cheapest); peak memory at most "
-               f"{max(r['peak_rss_mb'] for r in rows):,.0f} MB. "
-               f"{entry.get('ours', {}).get('variant', '')}. Run: `python -m experiments.benchmark "
-               "label_scale --label-scale-frames N ...`; rows of earlier runs are kept, each "
-               "with its own time, machine and load.")
-    # The frames each size rendered before its labelling (a later size renders only the
-    # frames the earlier ones did not), so they add up to the largest world.
-    rendered = [r for r in entry.get("renders") or [] if r.get("rendered")]
-    if rendered:
-        frames = sum(r["rendered"] for r in rendered)
-        wall, cpu = sum(r["seconds"] for r in rendered), sum(r["cpu_s"] for r in rendered)
-        out.append("")
-        out.append(f"Rendering the frames, once, before they are labelled (kept on disk): "
-                   f"{frames:,} frames in {wall:,.0f} s of wall time and {cpu:,.0f} s of CPU "
-                   f"({cpu / frames:.3f} s of CPU a frame) on "
-                   f"{entry.get('cpu_count', '?')} cores, "
-                   f"{entry.get('cpu_model', 'the machine of the rows above')}.")
-    return "\n".join(out) + "\n"
-
-
-def _num(x: float) -> str:
-    """Three significant figures; thousands separated."""
-    if x >= 1e6 or 0 < x < 1e-2:
-        return f"{x:.3g}"
-    if x >= 1000:
-        return f"{x:,.0f}"
-    return f"{x:.3g}"
-
-
 def map_summarization_headline(metrics: Mapping | None) -> str:
     """The README's Fig. 11 summary: % of queries localized within the coarsest threshold,
     per method and pruning ratio (``metrics.json`` of ``experiments.map_summarization``)."""
@@ -645,92 +511,18 @@ def _sec4a_categories(dataset: str) -> Callable[[Path], str]:
     return lambda root: sec4a_category_table(sec4a_runs(root, dataset))
 
 
-# ----------------------------------------------------------------------------- test suite
+def _benchmark_report():
+    """The benchmark's own renderer of ``benchmark.json`` (imported when a block needs it)."""
+    from experiments.benchmark import report
 
-def _before_run(runs: Sequence[Mapping]) -> Mapping:
-    """The suite before wherever it stands (a pair run in the other order lists the suite now
-    first)."""
-    return next((r for r in runs if r["suite"] == "before"), runs[0])
-
-
-def suite_measurement(m: Mapping) -> list[str]:
-    """The lines of one ``python -m experiments.suite_timing`` measurement: its runs in the
-    order they ran, each pair's share and the share summed over two pairs in opposite
-    orders."""
-    rows = ["| pair | suite | tests | pytest wall | `make test` wall | user CPU | probe |",
-            "|---|---|---|---|---|---|---|"]
-    rows += [f"| {r['pair'] + 1} | {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
-             f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s | "
-             + (f"{r['probe_s']:.3f} s |" if r.get("probe_s") is not None else "- |")
-             for r in m["runs"]]
-    shares = m["shares"]
-    pairs = sorted((int(p) + 1, s) for p, s in shares["pairs"].items())  # numbered from 1
-    text = ("The suite now against the suite before, pytest wall: "
-            + ", ".join(f"pair {p} {100 * s['pytest_s']:.1f} %" for p, s in pairs))
-    warm = [f"pair {p} {100 * s['warm_pytest_s']:.1f} %" for p, s in pairs
-            if "warm_pytest_s" in s]
-    if warm:  # the same clone again, right after its cold run
-        text += "; warm, " + ", ".join(warm)
-    for name, s in shares["balanced"].items():
-        text += (f"; pairs {name.replace(',', ' and ')} summed (one in each order) "
-                 f"{100 * s['pytest_s']:.1f} % of the pytest wall, "
-                 f"{100 * s['make_test_s']:.1f} % of `make test`'s, "
-                 f"{100 * s['user_s']:.1f} % of the user CPU")
-    settings = m["settings"]
-    return [*rows, "", text + ".", "",
-            f"Measured on {m['machine']}, with `python -m experiments.suite_timing --before "
-            f"<the suite before> --pairs {settings['pairs']}`: fresh clones running "
-            f"`{settings['command']}` one after the other, cold, nothing else running; the "
-            f"probe is the median CPU time of a fixed pure-Python loop timed every "
-            f"{settings['probe_interval_s']:g} s during the run: it rises when the host is "
-            "busier."]
+    return report
 
 
-def suite_times_table(data: Mapping | None) -> str:
-    """The suite's times now against before: the newest ``experiments.suite_timing``
-    measurement, what a cold run spends making JAX programs, the old suite's tests alone, and
-    one row per earlier pair (``experiments/results/suite_times.json``)."""
-    if not data:
-        return "_No suite timing is committed under `experiments/results/`._\n"
-    measurements = data.get("measurements") or []
-    lines = suite_measurement(measurements[0]) + [""] if measurements else []
-    prof = data["profile"]
-    jax = prof["jax_s"]
-    # Each of these lines names its machine: the measurement above may be of another CPU.
-    lines += [f"On {data['machine']}, a cold run's workers spent {sum(jax.values()):.0f} s of "
-              f"their {prof['user_s']:.0f} s of CPU making JAX programs (tracing "
-              f"{jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, XLA's compile "
-              f"{jax['compile']:.0f} s; the timing plugin below)."]
-    records = [data, *data.get("other_machines", ())]
-    same_record = next((r for r in records if r.get("same_tests")), None)
-    if same_record:  # the old suite's own tests, run on the code now
-        same = same_record["same_tests"]
-        lines += ["", f"The tests the suite before had, alone, on {same_record['machine']} "
-                  f"({same['what']}): "
-                  f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
-                  f"{same['before_pytest_s']:.0f} s for the suite before in the same script, "
-                  f"{100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
-    # Newest first: the record's own pair and the other pairs each carry their date (a
-    # stable sort keeps the record's own pair first among those of its date).
-    pairs = [(r["machine"], runs) for r in sorted(records, key=lambda r: r["date"], reverse=True)
-             for runs in (r["runs"], (r.get("repeat") or {}).get("runs")) if runs]
-    pairs = [(m["machine"], [r for r in m["runs"] if r["pair"] == p])
-             for m in measurements[1:] for p in sorted({r["pair"] for r in m["runs"]})] + pairs
-    if pairs:
-        lines += ["", "Earlier pairs, newest first, of earlier states of the suite as well "
-                  "(each described in the record):", "",
-                  "| machine | first | before | now, cold | now / before | now, warm / before |",
-                  "|---|---|---|---|---|---|"]
-        for machine, runs in pairs:
-            before = _before_run(runs)
-            by = {r["suite"]: r for r in runs}
-            cold, warm = by["now, cold"], by.get("now, warm")
-            cold_share, warm_share = (f"{100 * r['pytest_s'] / before['pytest_s']:.0f} %"
-                                      if r else "-" for r in (cold, warm))
-            lines.append(f"| {machine} | {runs[0]['suite'].split(',')[0]} | "
-                         f"{before['pytest_s']:.0f} s | "
-                         f"{cold['pytest_s']:.0f} s | {cold_share} | {warm_share} |")
-    return "\n".join(lines) + "\n"
+def _suite_timing():
+    """The suite timing's own renderer of its record (imported when a block needs it)."""
+    from experiments import suite_timing
+
+    return suite_timing
 
 
 BLOCKS: dict[str, Callable[[Path], str]] = {
@@ -746,9 +538,11 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "demo_line": lambda root: demo_line(sec4a_runs(root, "webcam_clipart")),
     "map_summarization_headline": lambda root: map_summarization_headline(
         read_json(root / MAPSUM)),
-    "benchmark": lambda root: benchmark_table(read_json(root / BENCHMARK)),
-    "benchmark_scaling": lambda root: benchmark_scaling(read_json(root / BENCHMARK)),
-    "label_scale": lambda root: label_scale_table(read_json(root / BENCHMARK)),
+    "benchmark": lambda root: _benchmark_report().docs_headline(read_json(root / BENCHMARK)),
+    "benchmark_scaling": lambda root: _benchmark_report().docs_scaling(
+        read_json(root / BENCHMARK)),
+    "label_scale": lambda root: _benchmark_report().docs_label_scale(
+        read_json(root / BENCHMARK)),
     "map_summarization": lambda root: map_summarization_tables(read_json(root / MAPSUM)),
     "map_summarization_unseen_seeds": lambda root: map_summarization_tables(
         read_json(root / MAPSUM_UNSEEN), MAPSUM_UNSEEN),
@@ -769,7 +563,7 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
     "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),
-    "suite_times": lambda root: suite_times_table(read_json(root / SUITE_TIMES)),
+    "suite_times": lambda root: _suite_timing().docs_block(read_json(root / SUITE_TIMES)),
 }
 
 

@@ -17,7 +17,8 @@ median probe says whether the host moved between two runs of a pair (a shared ho
 A killed measurement started again with the same arguments keeps the runs it finished and
 runs the rest. ``--record`` adds the measurement to the committed record
 (``experiments/results/suite_times.json``, ``measurements``, newest first), whose newest
-measurement ``python -m experiments.docs_tables`` renders into ``docs/testing.md``.
+measurement ``docs_block`` renders (through ``python -m experiments.docs_tables``) into
+``docs/testing.md``.
 """
 
 from __future__ import annotations
@@ -197,6 +198,94 @@ def _settings(args, now: str, before: str, coretype: str | None) -> dict:
             "before": before, "pairs": args.pairs,
             "coretype": coretype, "probe_interval_s": args.probe_interval,
             **({"warm": True} if args.warm else {})}
+
+
+# ------------------------------------------- the record as docs/testing.md shows it (docs_tables)
+
+def _before_run(runs: Sequence[Mapping]) -> Mapping:
+    """The suite before wherever it stands (a pair run in the other order lists the suite now
+    first)."""
+    return next((r for r in runs if r["suite"] == "before"), runs[0])
+
+
+def measurement_lines(m: Mapping) -> list[str]:
+    """The lines of one ``python -m experiments.suite_timing`` measurement: its runs in the
+    order they ran, each pair's share and the share summed over two pairs in opposite
+    orders."""
+    rows = ["| pair | suite | tests | pytest wall | `make test` wall | user CPU | probe |",
+            "|---|---|---|---|---|---|---|"]
+    rows += [f"| {r['pair'] + 1} | {r['suite']} | {r['tests']} | {r['pytest_s']:.0f} s | "
+             f"{r['make_test_s']:.0f} s | {r['user_s']:.0f} s | "
+             + (f"{r['probe_s']:.3f} s |" if r.get("probe_s") is not None else "- |")
+             for r in m["runs"]]
+    shares = m["shares"]
+    pairs = sorted((int(p) + 1, s) for p, s in shares["pairs"].items())  # numbered from 1
+    text = ("The suite now against the suite before, pytest wall: "
+            + ", ".join(f"pair {p} {100 * s['pytest_s']:.1f} %" for p, s in pairs))
+    warm = [f"pair {p} {100 * s['warm_pytest_s']:.1f} %" for p, s in pairs
+            if "warm_pytest_s" in s]
+    if warm:  # the same clone again, right after its cold run
+        text += "; warm, " + ", ".join(warm)
+    for name, s in shares["balanced"].items():
+        text += (f"; pairs {name.replace(',', ' and ')} summed (one in each order) "
+                 f"{100 * s['pytest_s']:.1f} % of the pytest wall, "
+                 f"{100 * s['make_test_s']:.1f} % of `make test`'s, "
+                 f"{100 * s['user_s']:.1f} % of the user CPU")
+    settings = m["settings"]
+    return [*rows, "", text + ".", "",
+            f"Measured on {m['machine']}, with `python -m experiments.suite_timing --before "
+            f"<the suite before> --pairs {settings['pairs']}`: fresh clones running "
+            f"`{settings['command']}` one after the other, cold, nothing else running; the "
+            f"probe is the median CPU time of a fixed pure-Python loop timed every "
+            f"{settings['probe_interval_s']:g} s during the run: it rises when the host is "
+            "busier."]
+
+
+def docs_block(data: Mapping | None) -> str:
+    """The suite's times now against before: the newest ``experiments.suite_timing``
+    measurement, what a cold run spends making JAX programs, the old suite's tests alone, and
+    one row per earlier pair (``experiments/results/suite_times.json``)."""
+    if not data:
+        return "_No suite timing is committed under `experiments/results/`._\n"
+    measurements = data.get("measurements") or []
+    lines = measurement_lines(measurements[0]) + [""] if measurements else []
+    prof = data["profile"]
+    jax = prof["jax_s"]
+    # Each of these lines names its machine: the measurement above may be of another CPU.
+    lines += [f"On {data['machine']}, a cold run's workers spent {sum(jax.values()):.0f} s of "
+              f"their {prof['user_s']:.0f} s of CPU making JAX programs (tracing "
+              f"{jax['trace']:.0f} s, lowering {jax['lower']:.0f} s, XLA's compile "
+              f"{jax['compile']:.0f} s; the timing plugin below)."]
+    records = [data, *data.get("other_machines", ())]
+    same_record = next((r for r in records if r.get("same_tests")), None)
+    if same_record:  # the old suite's own tests, run on the code now
+        same = same_record["same_tests"]
+        lines += ["", f"The tests the suite before had, alone, on {same_record['machine']} "
+                  f"({same['what']}): "
+                  f"{same['tests']} in {same['pytest_s']:.0f} s of pytest against "
+                  f"{same['before_pytest_s']:.0f} s for the suite before in the same script, "
+                  f"{100 * same['pytest_s'] / same['before_pytest_s']:.0f} %."]
+    # Newest first: the record's own pair and the other pairs each carry their date (a
+    # stable sort keeps the record's own pair first among those of its date).
+    pairs = [(r["machine"], runs) for r in sorted(records, key=lambda r: r["date"], reverse=True)
+             for runs in (r["runs"], (r.get("repeat") or {}).get("runs")) if runs]
+    pairs = [(m["machine"], [r for r in m["runs"] if r["pair"] == p])
+             for m in measurements[1:] for p in sorted({r["pair"] for r in m["runs"]})] + pairs
+    if pairs:
+        lines += ["", "Earlier pairs, newest first, of earlier states of the suite as well "
+                  "(each described in the record):", "",
+                  "| machine | first | before | now, cold | now / before | now, warm / before |",
+                  "|---|---|---|---|---|---|"]
+        for machine, runs in pairs:
+            before = _before_run(runs)
+            by = {r["suite"]: r for r in runs}
+            cold, warm = by["now, cold"], by.get("now, warm")
+            cold_share, warm_share = (f"{100 * r['pytest_s'] / before['pytest_s']:.0f} %"
+                                      if r else "-" for r in (cold, warm))
+            lines.append(f"| {machine} | {runs[0]['suite'].split(',')[0]} | "
+                         f"{before['pytest_s']:.0f} s | "
+                         f"{cold['pytest_s']:.0f} s | {cold_share} | {warm_share} |")
+    return "\n".join(lines) + "\n"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -5,19 +5,22 @@
 where a stage has no peer). ``benchmark.md`` is the same as tables: median, min, max per
 variant and its ratio to the peer of the same run, pair by pair. Stages measured in time
 (``summarize`` in s, ``localize`` in ms/query) keep ``ratio`` a speed ratio: peer time / our
-time.
+time. ``docs_headline``, ``docs_scaling`` and ``docs_label_scale`` render the committed
+``experiments/results/benchmark.json`` into the user documentation (``experiments.docs_tables``).
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from rp_jax import files
 
-__all__ = ["markdown", "read_results", "write_reports"]
+__all__ = ["docs_headline", "docs_label_scale", "docs_scaling", "markdown", "read_results",
+           "write_reports"]
 
 
 def read_results(out_dir: str | os.PathLike) -> dict[str, Any]:
@@ -453,3 +456,141 @@ def write_reports(
     files.write_text(js, json.dumps(results, indent=2, sort_keys=False))
     files.write_text(md, markdown(results, notes))
     return js, md
+
+
+# ------------------------------------------- the user documentation's tables (docs_tables)
+
+def docs_headline(results: Mapping | None) -> str:
+    """The headline of ``experiments/results/benchmark.json``: per stage, our median and the
+    peer's, each with its variant, and the stage's ratio (median over interleaved rounds of
+    ours / peer in the same round; for times, the peer's time over ours: above 1, ours is
+    faster)."""
+    if not results:
+        return "_No benchmark result is committed (`experiments/results/benchmark.json`)._\n"
+    lines = ["| stage | unit | ours | peer | ratio |", "|---|---|---|---|---|"]
+
+    def peak(d: Mapping) -> str:
+        f = d.get("fraction_of_fp32_peak")
+        return f", {100 * f:.1f} % of FP32 peak" if f else ""
+
+    for stage, entry in results.items():
+        ours, peer = entry.get("ours"), entry.get("peer")
+        if not isinstance(ours, Mapping):
+            continue
+        unit = entry.get("unit", "")
+        if entry.get("headline_points"):
+            unit += f" ({entry['headline_points']:,} points)"
+        if ours.get("median") is None and "per_num_images" in ours:  # labelling: the largest
+            n, largest = max(ours["per_num_images"].items(), key=lambda kv: int(kv[0]))
+            lines.append(f"| {stage} | {unit} for {n} images | "
+                         f"{_num(largest['seconds']['median'])} | - | - |")
+            continue
+        if ours.get("median") is None:
+            continue
+        ratio = entry.get("ratio")
+        extra = ""
+        if isinstance(entry.get("ours_float32"), Mapping):
+            extra = f" (float32: {_num(entry['ours_float32']['median'])})"
+        lines.append(
+            f"| {stage} | {unit} | {_num(ours['median'])} `{ours.get('variant', '')}`{extra}"
+            f"{peak(ours)} | "
+            + (f"{_num(peer['median'])} `{peer.get('variant', '')}`{peak(peer)}" if peer else "-")
+            + f" | {f'{ratio:.2f}×' if ratio else '-'} |")
+        best = (ours.get("variants") or {}).get(ours.get("best_variant") or "")
+        if best and best["median"] > ours["median"]:
+            best_ratio = best.get("ratio_to_peer")
+            lines.append(f"| {stage}, fastest variant | {unit} | {_num(best['median'])} "
+                         f"`{ours['best_variant']}`{peak(best)} | | "
+                         + (f"{best_ratio:.2f}×" if best_ratio else "-") + " |")
+    started = sorted({e["started"] for e in results.values() if e.get("started")})
+    cpu = next((e["cpu"] for e in results.values() if e.get("cpu")), None) or {}
+    cores = next((e["cpu_count"] for e in results.values() if e.get("cpu_count")), None)
+    machine = cpu.get("model", "machine unknown") + (f", {cores} cores" if cores else "")
+    return ("\n".join(lines) + "\n\nRun: `python -m experiments.benchmark` (every stage, "
+            f"`--size full`); started {started[0] if started else 'date unknown'}; {machine}; "
+            "the code of the commit that added `experiments/results/benchmark.json`.\n")
+
+
+def docs_scaling(results: Mapping | None) -> str:
+    """How labelling (Sec. III-D) and map summarization (Sec. V-A) grow with their input,
+    from ``benchmark.json``'s ``groundtruth``, ``match`` and ``summarize`` stages."""
+    if not results:
+        return "_No benchmark result is committed._\n"
+    out = []
+    gt = (results.get("groundtruth") or {}).get("ours", {}).get("per_num_images")
+    if gt:
+        out += ["| images in a viewpoint | labelling, s (median) | peak memory, MB |",
+                "|---|---|---|"]
+        for n, e in sorted(gt.items(), key=lambda kv: int(kv[0])):
+            out.append(f"| {int(n):,} | {_num(e['seconds']['median'])} | "
+                       f"{e.get('peak_rss_mb', float('nan')):,.0f} |")
+        out.append("")
+    scaling = ((results.get("match") or {}).get("scaling") or {}).get("per_num_images")
+    if scaling:
+        out += ["| images in a viewpoint | all-pairs matching float32, s | bfloat16, s | "
+                "match arrays, MB | measured or extrapolated |", "|---|---|---|---|---|"]
+        for n, e in sorted(scaling.items(), key=lambda kv: int(kv[0])):
+            out.append(f"| {int(n):,} | {_num(e['float32']['seconds'])} | "
+                       f"{_num(e['bf16']['seconds'])} | {e['float32']['output_mb']:,.0f} | "
+                       f"{'measured' if e.get('measured') else 'extrapolated per image pair'} |")
+        out.append("")
+    summ = results.get("summarize") or {}
+    if summ.get("ours", {}).get("per_num_points"):
+        ours, peer = summ["ours"]["per_num_points"], (summ.get("peer") or {}).get(
+            "per_num_points", {})
+        out += ["| map points | ours, s | peak memory, MB | K-cover, s |", "|---|---|---|---|"]
+        for n, e in sorted(ours.items(), key=lambda kv: int(kv[0])):
+            k = peer.get(n)
+            out.append(f"| {int(n):,} | {_num(e['seconds']['median'])} | "
+                       f"{e.get('peak_mb', float('nan')):,.0f} | "
+                       f"{_num(k['seconds']['median']) if k else '-'} |")
+        out.append("")
+    return "\n".join(out).rstrip("\n") + "\n\nFrom the same run as the table above.\n"
+
+
+def docs_label_scale(results: Mapping | None) -> str:
+    """The ``label_scale`` stage of ``benchmark.json``: one Webcam-like viewpoint labelled
+    at each size (Sec. III-D at the paper's scale), with when, where and under what load each
+    row was measured, and how the CPU cost per frame varies over the sizes."""
+    entry = (results or {}).get("label_scale") or {}
+    rows = entry.get("label_scale") or []
+    if not rows:
+        return "_No `label_scale` result is committed (`experiments/results/benchmark.json`)._\n"
+    out = ["| frames | CPU s | CPU s per frame | peak memory, MB | records | wall s | "
+           "load (1 min) | measured |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['frames']:,} | {r['cpu_s']:,.0f} | {r['cpu_s'] / r['frames']:.3f} | "
+                   f"{r['peak_rss_mb']:,.0f} | {r['records']:,} | {r['wall_s']:,.0f} | "
+                   f"{r.get('load_average_1min', float('nan')):.1f} | "
+                   f"{r.get('measured_at', '?').replace('T', ' ')} UTC, "
+                   f"{r.get('cpu_model', entry.get('cpu_model', '?'))} |")
+    per = [r["cpu_s"] / r["frames"] for r in rows]
+    out.append("")
+    out.append(f"CPU seconds per frame from {min(per):.3f} to {max(per):.3f} "
+               f"({max(per) / min(per) - 1:+.0%} from the cheapest); peak memory at most "
+               f"{max(r['peak_rss_mb'] for r in rows):,.0f} MB. "
+               f"{entry.get('ours', {}).get('variant', '')}. Run: `python -m experiments.benchmark "
+               "label_scale --label-scale-frames N ...`; rows of earlier runs are kept, each "
+               "with its own time, machine and load.")
+    # The frames each size rendered before its labelling (a later size renders only the
+    # frames the earlier ones did not), so they add up to the largest world.
+    rendered = [r for r in entry.get("renders") or [] if r.get("rendered")]
+    if rendered:
+        frames = sum(r["rendered"] for r in rendered)
+        wall, cpu = sum(r["seconds"] for r in rendered), sum(r["cpu_s"] for r in rendered)
+        out.append("")
+        out.append(f"Rendering the frames, once, before they are labelled (kept on disk): "
+                   f"{frames:,} frames in {wall:,.0f} s of wall time and {cpu:,.0f} s of CPU "
+                   f"({cpu / frames:.3f} s of CPU a frame) on "
+                   f"{entry.get('cpu_count', '?')} cores, "
+                   f"{entry.get('cpu_model', 'the machine of the rows above')}.")
+    return "\n".join(out) + "\n"
+
+
+def _num(x: float) -> str:
+    """Three significant figures; thousands separated."""
+    if x >= 1e6 or 0 < x < 1e-2:
+        return f"{x:.3g}"
+    if x >= 1000:
+        return f"{x:,.0f}"
+    return f"{x:.3g}"

@@ -1,5 +1,6 @@
 """The ``label_scale`` benchmark stage (a Webcam-like viewpoint of many frames labelled as a
-build labels it, Sec. IV-A-1): its viewpoints, its fit, and its report at tiny size.
+build labels it, Sec. IV-A-1): its viewpoints, its fit, its report at tiny size, and its
+table in the user documentation.
 
 No timing thresholds: the figures are whatever a shared machine gives; the tests check the
 viewpoints the stage builds and the report's structure.
@@ -13,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from experiments.benchmark import label_scale_stage
+from experiments.benchmark import label_scale_stage, report
 from experiments.benchmark.label_scale_stage import NUM_DAYS, fit, viewpoint_days
 from experiments.benchmark.run import run_benchmark
 
@@ -81,3 +82,24 @@ def test_tiny_stage_renders_once_labels_and_keeps_earlier_sizes(tmp_path):
     text = md.read_text()
     assert "## label_scale" in text and "| 42 |" in text
     assert not list(tmp_path.glob("label_scale/tiny/cache_*"))  # removed once measured
+
+
+def test_the_docs_table_has_each_size_its_machine_and_the_per_frame_spread():
+    rows = [{"frames": n, "cpu_s": c, "wall_s": 2 * c, "peak_rss_mb": 480.0 + n / 1000,
+             "records": 10_000, "load_average_1min": 1.5, "measured_at": "2030-01-01T10:00:00",
+             "cpu_model": "AMD EPYC"} for n, c in ((1000, 200.0), (10000, 2500.0))]
+    text = report.docs_label_scale({"label_scale": {"label_scale": rows,
+                                                          "ours": {"variant": "84 sources"}}})
+    row = "| 1,000 | 200 | 0.200 | 481 | 10,000 | 400 | 1.5 | 2030-01-01 10:00:00 UTC, AMD EPYC |"
+    assert row in text
+    assert "| 10,000 | 2,500 | 0.250 |" in text
+    assert "from 0.200 to 0.250 (+25% from the cheapest)" in text and "at most 490 MB" in text
+    assert "No `label_scale` result" in report.docs_label_scale({})
+    assert "Rendering the frames" not in text  # no render recorded
+    renders = [{"frames": 1000, "rendered": 1000, "seconds": 60.0, "cpu_s": 100.0},
+               {"frames": 3000, "rendered": 0, "seconds": 0.01, "cpu_s": 0.01},
+               {"frames": 10000, "rendered": 7000, "seconds": 340.0, "cpu_s": 700.0}]
+    text = report.docs_label_scale({"label_scale": {
+        "label_scale": rows, "renders": renders, "cpu_count": 2, "cpu_model": "AMD EPYC"}})
+    assert ("8,000 frames in 400 s of wall time and 800 s of CPU (0.100 s of CPU a frame) "
+            "on 2 cores, AMD EPYC.") in text

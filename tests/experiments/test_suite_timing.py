@@ -1,5 +1,6 @@
-"""experiments.suite_timing: the order of the runs, pytest's summary, the shares, and a
-whole measurement on a tiny repository whose 'suite' prints a summary line."""
+"""experiments.suite_timing: the order of the runs, pytest's summary, the shares, a whole
+measurement on a tiny repository whose 'suite' prints a summary line, and the record as
+docs/testing.md shows it."""
 
 import json
 import subprocess
@@ -172,3 +173,72 @@ def test_bad_arguments_are_refused(repo, tmp_path, capsys, monkeypatch, argv, me
         st.main(["--repo", str(repo), *argv])
     assert message in capsys.readouterr().err
     assert (tmp_path / "bad.json").read_text() == "{half"  # nothing of the user's rewritten
+
+
+def _measurement(machine, pytest_s):
+    """A suite_timing result as its file holds it: pairs of (now, before) pytest seconds."""
+    order = st.run_order(len(pytest_s))
+    runs = [{"pair": p, "suite": s, "code": "abc1234", "tests": "9 passed",
+             "pytest_s": pytest_s[p][s == st.BEFORE],
+             "make_test_s": pytest_s[p][s == st.BEFORE] + 20.0,
+             "user_s": 2 * pytest_s[p][s == st.BEFORE], "probe_s": 0.17}
+            for p, s in order]
+    result = {"settings": {"pairs": len(pytest_s), "command": "make test",
+                           "probe_interval_s": 15.0},
+              "date": "2030-01-03", "machine": machine, "runs": runs,
+              "shares": st.shares(runs)}
+    return json.loads(json.dumps(result))
+
+
+def test_the_docs_block_gives_the_newest_measurement_and_one_row_per_earlier_pair():
+    runs = [{"suite": s, "code": "abc", "tests": "9 passed", "pytest_s": p, "make_test_s": p + 4,
+             "user_s": 2 * p} for s, p in (("before", 400.0), ("now, cold", 300.0),
+                                           ("now, warm", 280.0))]
+    record = {"date": "2030-01-01", "machine": "AMD EPYC", "what": "fresh clones", "runs": runs,
+              "profile": {"pytest_s": 290.0, "user_s": 500.0,
+                          "jax_s": {"trace": 10.0, "lower": 20.0, "compile": 70.0}}}
+    text = st.docs_block(record)
+    assert ("On AMD EPYC, a cold run's workers spent 100 s of their 500 s of CPU making JAX "
+            "programs") in text
+    assert "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |" in text
+    assert "| pair |" not in text and "The tests the suite before had" not in text
+    assert "2030" not in text and "abc" not in text  # dates and codes stay in the record
+    # Another machine's pair (newer), run with the suite now first; the record's own pair
+    # again; the old suite's tests alone.
+    again = {"what": "in the other order", "runs": [dict(runs[1], pytest_s=330.0),
+                                                      dict(runs[0], pytest_s=440.0)]}
+    same = {"what": "the ids both collect", "tests": "8 passed", "pytest_s": 150.0,
+            "before_pytest_s": 420.0}
+    intel = {"machine": "an Intel Xeon", "date": "2030-01-02", "what": "again",
+             "runs": [dict(runs[1], pytest_s=700.0), dict(runs[0], pytest_s=800.0)]}
+    record = dict(record, repeat=again, same_tests=same, other_machines=[intel])
+    text = st.docs_block(record)
+    rows = [line for line in text.splitlines() if line.startswith("| ") and " s |" in line]
+    assert rows == ["| an Intel Xeon | now | 800 s | 700 s | 88 % | - |",
+                    "| AMD EPYC | before | 400 s | 300 s | 75 % | 70 % |",
+                    "| AMD EPYC | now | 440 s | 330 s | 75 % | - |"]
+    assert ("The tests the suite before had, alone, on AMD EPYC (the ids both collect): "
+            "8 passed in 150 s "
+            "of pytest against 420 s for the suite before in the same script, 36 %.") in text
+    # Two suite_timing measurements: the newest in full, the older one's pairs as rows.
+    newest = _measurement("a 2-core AMD EPYC", [(300.0, 600.0), (330.0, 600.0)])
+    older = _measurement("a 2-core Intel Xeon", [(250.0, 500.0)])
+    text = st.docs_block(dict(record, measurements=[newest, older]))
+    assert ("| 1 | now, cold | 9 passed | 300 s | 320 s | 600 s | 0.170 s |\n"
+            "| 1 | before | 9 passed | 600 s | 620 s | 1200 s | 0.170 s |\n"
+            "| 2 | before | 9 passed | 600 s | 620 s | 1200 s | 0.170 s |\n"
+            "| 2 | now, cold | 9 passed | 330 s | 350 s | 660 s | 0.170 s |") in text
+    assert ("The suite now against the suite before, pytest wall: pair 1 50.0 %, pair 2 55.0 %; "
+            "pairs 1 and 2 summed (one in each order) 52.5 % of the pytest wall, "
+            "54.0 % of `make test`'s, 52.5 % of the user CPU.") in text  # 670 / 1240
+    assert "Measured on a 2-core AMD EPYC, with `python -m experiments.suite_timing" in text
+    assert "| a 2-core Intel Xeon | now | 500 s | 250 s | 50 % | - |" in text.split(
+        "Earlier pairs")[1].splitlines()[4]  # the older measurement's pair, newest row
+    assert "2030" not in text and "abc" not in text
+    assert "warm" not in text.split("Earlier pairs")[0]  # no warm run measured
+    newest["runs"].insert(1, dict(newest["runs"][0], suite="now, warm", pytest_s=240.0))
+    newest["shares"] = json.loads(json.dumps(st.shares(newest["runs"])))  # 240 / 600
+    text = st.docs_block(dict(record, measurements=[newest]))
+    assert "| 1 | now, warm | 9 passed | 240 s |" in text
+    assert "pair 2 55.0 %; warm, pair 1 40.0 %; pairs 1 and 2 summed" in text
+    assert "No suite timing" in st.docs_block(None)
