@@ -43,7 +43,8 @@ import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from experiments import provenance
+from experiments import provenance, suite_timing
+from experiments.benchmark import report as benchmark_report
 
 __all__ = [
     "BLOCKS",
@@ -511,20 +512,6 @@ def _sec4a_categories(dataset: str) -> Callable[[Path], str]:
     return lambda root: sec4a_category_table(sec4a_runs(root, dataset))
 
 
-def _benchmark_report():
-    """The benchmark's own renderer of ``benchmark.json`` (imported when a block needs it)."""
-    from experiments.benchmark import report
-
-    return report
-
-
-def _suite_timing():
-    """The suite timing's own renderer of its record (imported when a block needs it)."""
-    from experiments import suite_timing
-
-    return suite_timing
-
-
 BLOCKS: dict[str, Callable[[Path], str]] = {
     "sec4a_headline": lambda root: sec4a_headline(
         {d: sec4a_runs(root, d) for d in ("webcam_clipart", "cmu_seasons")}),
@@ -538,10 +525,10 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "demo_line": lambda root: demo_line(sec4a_runs(root, "webcam_clipart")),
     "map_summarization_headline": lambda root: map_summarization_headline(
         read_json(root / MAPSUM)),
-    "benchmark": lambda root: _benchmark_report().docs_headline(read_json(root / BENCHMARK)),
-    "benchmark_scaling": lambda root: _benchmark_report().docs_scaling(
+    "benchmark": lambda root: benchmark_report.docs_headline(read_json(root / BENCHMARK)),
+    "benchmark_scaling": lambda root: benchmark_report.docs_scaling(
         read_json(root / BENCHMARK)),
-    "label_scale": lambda root: _benchmark_report().docs_label_scale(
+    "label_scale": lambda root: benchmark_report.docs_label_scale(
         read_json(root / BENCHMARK)),
     "map_summarization": lambda root: map_summarization_tables(read_json(root / MAPSUM)),
     "map_summarization_unseen_seeds": lambda root: map_summarization_tables(
@@ -563,7 +550,7 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
     "map_summarization_selection": lambda root: recipe_selection_table(
         read_json(root / MAPSUM_SELECTION)),
     "universal_rp": lambda root: universal_rp_tables(read_json(root / UNIVERSAL_RP)),
-    "suite_times": lambda root: _suite_timing().docs_block(read_json(root / SUITE_TIMES)),
+    "suite_times": lambda root: suite_timing.docs_block(read_json(root / SUITE_TIMES)),
 }
 
 
