@@ -320,3 +320,17 @@ def test_model_json_says_what_each_model_reads_and_its_resolution():
         # No folder of the maintainer's machine ships (ship_models blanks them).
         assert config["input"]["data_dir"] == config["input"]["manual_dir"] == "", name
     assert ship_models.trained_image_size([[640, 480], [640, 480], [320, 240]]) == [640, 480]
+
+
+def test_command_on_an_image_without_keypoints_says_so(model, tmp_path, capsys):
+    """A flat image has no SIFT keypoints: the line says there is nothing to score (not a mean
+    of nothing), and the files are still written, empty."""
+    flat = _write(tmp_path / "flat.png", np.full((120, 160, 3), 77, np.uint8))
+    out = tmp_path / "out"
+    assert keypoints_cli.main([str(flat), "--predictor", str(model), "--captured",
+                               "2024-06-01 09:30", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "flat.png: 0 keypoints, captured 2024-06-01 09:30, nothing to score" in printed
+    assert "nan" not in printed
+    with np.load(out / "flat.npz") as z:
+        assert z["curves"].shape == (0, 21) and z["score"].shape == (0,)

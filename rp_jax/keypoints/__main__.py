@@ -274,8 +274,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                       f"{r['detection_size'][0]}x{r['detection_size'][1]} (--max-size)")
             png = f" and {Path(r['png']).name}" if r["png"] else ""
             captured, at = (f"{r[k]:%Y-%m-%d %H:%M}" for k in ("captured", "at"))
-            print(f"{r['image']}: {r['keypoints']} keypoints, captured {captured}, mean "
-                  f"repeatability {r['mean_score']:.3f} at {at} -> {Path(r['npz']).name}{png}")
+            scored = (f"mean repeatability {r['mean_score']:.3f} at {at}" if r["keypoints"] else
+                      "nothing to score (a textureless image, or one too small for SIFT)")
+            print(f"{r['image']}: {r['keypoints']} keypoints, captured {captured}, {scored} -> "
+                  f"{Path(r['npz']).name}{png}")
         print(f"wrote {len(results)} image(s) to {args.out}"
               + (f" and the page {args.html}" if args.html else ""))
         return 0
