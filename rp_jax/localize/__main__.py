@@ -104,6 +104,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 intrinsics=args.intrinsics, num_retrieved=args.num_retrieved,
                 match_ratio=args.match_ratio, reprojection_error=args.reprojection_error,
                 min_inliers=args.min_inliers, max_keypoints=args.max_keypoints, seed=args.seed)
+        if result["map_camera_queries"]:
+            named = (f"not in --intrinsics {args.intrinsics}" if args.intrinsics
+                     else "no --intrinsics")
+            print(f"{result['map_camera_queries']} of {result['queries']} queries took the map's "
+                  f"only camera ({named}); their per_query 'camera' in {RESULTS} is 'map'")
         print(f"localized {result['localized']} of {result['queries']} queries against "
               f"{result['map_points']} map points; wrote {args.out}/{SUBMISSION}")
         if result["accuracy"] is not None:

@@ -50,6 +50,8 @@ class QueryImage:
       global_descriptor: [G] global descriptor (same kind as the map index's).
       K: 3x3 intrinsics.
       distortion: OpenCV distortion coefficients, or None.
+      camera_from: where ``K`` came from: ``"intrinsics"`` (a file the user gave) or
+        ``"map"`` (the map's only camera, standing in for a query no file names).
     """
 
     name: str
@@ -58,6 +60,7 @@ class QueryImage:
     global_descriptor: np.ndarray
     K: np.ndarray
     distortion: np.ndarray | None = None
+    camera_from: str = "intrinsics"
 
 
 @dataclasses.dataclass(frozen=True)

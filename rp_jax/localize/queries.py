@@ -212,7 +212,9 @@ def query_images(
         if key is None:  # a per-camera file: the camera the name names
             key = camera_of_name(name, intrinsics)
         camera = None if key is None else intrinsics[key]
+        camera_from = "intrinsics"
         if camera is None:
+            camera_from = "map"
             size = images.probe_size(path)
             if len(cams) == 1 and size == (int(cams[0].width), int(cams[0].height)):
                 camera = cams[0]
@@ -242,5 +244,6 @@ def query_images(
             xy, desc = feats.xy.astype(np.float64), feats.descriptor
         g = (global_h5[name] if global_h5 is not None
              else description.query_global_descriptor(desc))
-        out.append(QueryImage(name, xy, desc, g, K, dist if dist.size else None))
+        out.append(QueryImage(name, xy, desc, g, K, dist if dist.size else None,
+                              camera_from=camera_from))
     return out

@@ -157,7 +157,8 @@ def localize_folder(
     for q, r in zip(queries, results):
         poses[q.name] = (r.pose.R, r.pose.t) if r.success else None
         per_query[q.name] = {"localized": bool(r.success), "matches": int(r.num_matches),
-                             "inliers": int(r.pose.num_inliers), "retrieved": r.retrieved[:3]}
+                             "inliers": int(r.pose.num_inliers), "retrieved": r.retrieved[:3],
+                             "camera": q.camera_from}
         if gt is not None:
             key = gt_names.find(q.name)
             if key is None:
@@ -174,6 +175,7 @@ def localize_folder(
         "descriptors": description.local_source,
         "global_descriptors": description.global_source,
         "queries": len(queries),
+        "map_camera_queries": sum(q.camera_from == "map" for q in queries),
         "localized": sum(v is not None for v in poses.values()),
         "ground_truth": None if ground_truth is None else str(ground_truth),
         "scored": len(errors),

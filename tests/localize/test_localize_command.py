@@ -82,6 +82,7 @@ def test_plain_colmap_model_with_images_and_the_maps_camera(scene, tmp_path, cap
                      scene.queries, "--out", out) == 0
     printed = capsys.readouterr().out
     assert "localized 3 of 3" in printed and "accuracy" not in printed
+    assert "3 of 3 queries took the map's only camera (no --intrinsics)" in printed
     _check_poses(scene, out / "submission.txt")
     assert json.loads((out / "localization.json").read_text())["accuracy"] is None
 
@@ -301,3 +302,27 @@ def test_user_files_in_out_are_kept(scene, tmp_path, capsys):
     bad.write_text("q_0.jpg PINHOLE 320 240 300\n")
     assert _localize(*argv, "--intrinsics", bad, "--out", tmp_path / "new") == 2
     assert not (tmp_path / "new").exists()
+
+
+def test_queries_an_intrinsics_file_misses_take_the_maps_camera_and_it_is_said(scene, tmp_path,
+                                                                               capsys):
+    """A query the --intrinsics file does not name takes the map's only camera (same size):
+    the command says how many did, and localization.json marks each query's camera."""
+    lines = scene.intrinsics.read_text().splitlines()
+    some = tmp_path / "some_intrinsics.txt"
+    some.write_text(lines[0] + "\n")  # q_0.jpg only
+    out = tmp_path / "loc"
+    assert _localize("--map", scene.model, "--images", scene.images, "--queries",
+                     scene.queries, "--intrinsics", some, "--out", out) == 0
+    printed = capsys.readouterr().out
+    assert (f"2 of 3 queries took the map's only camera (not in --intrinsics {some})"
+            in printed)
+    per_query = json.loads((out / "localization.json").read_text())["per_query"]
+    assert {n: q["camera"] for n, q in per_query.items()} == {
+        "q_0.jpg": "intrinsics", "q_1.jpg": "map", "q_2.jpg": "map"}
+    _check_poses(scene, out / "submission.txt")
+    # Every query named: nothing said.
+    assert _localize("--map", scene.model, "--images", scene.images, "--queries",
+                     scene.queries, "--intrinsics", scene.intrinsics, "--out",
+                     tmp_path / "all") == 0
+    assert "map's only camera" not in capsys.readouterr().out
