@@ -22,7 +22,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rp_jax import time_fields
-from rp_jax.files import OutputExistsError
+from rp_jax.files import FolderNotWritableError, OutputExistsError
 from rp_jax.schedule import OutsideScheduleError
 from rp_jax.sources.capture_times import TIME_FORMATS_HELP, NoCaptureTimeError, parse_datetime
 from rp_jax.sources.layout import LayoutError
@@ -55,7 +55,7 @@ class InputError(ValueError):
 
 # What a command reports in one line (exit 2); anything else is a bug and keeps its traceback.
 INPUT_ERRORS = (InputError, LayoutError, NoCaptureTimeError, FileNotFoundError,
-                OutsideScheduleError, OutputExistsError)
+                OutsideScheduleError, OutputExistsError, FolderNotWritableError)
 
 
 class DateOnly(dt.datetime):

@@ -17,7 +17,9 @@ folder written in full (a COLMAP model).
 project did not write there (a user's own ``summary.json``), unless told to overwrite; it
 records what it wrote (``.rp_jax_outputs.json``: name, size, modification time) so that a
 second run replaces its own outputs without asking; and a run that fails leaves nothing of
-itself behind (what it wrote is removed, and the folder if it made it).
+itself behind (what it wrote is removed, and the folder if it made it). ``folder_problem``
+says, before any work, why a folder could not be created or written (the experiments ask
+it of ``--workdir``).
 """
 
 from __future__ import annotations
@@ -34,8 +36,10 @@ from typing import Any
 
 __all__ = [
     "OUTPUTS_RECORD",
+    "FolderNotWritableError",
     "OutputExistsError",
     "OutputFolder",
+    "folder_problem",
     "publish_dir",
     "replacing",
     "write_bytes",
@@ -149,6 +153,34 @@ class OutputExistsError(FileExistsError):
     """An output would replace a file or folder that the project did not write there."""
 
 
+class FolderNotWritableError(PermissionError):
+    """An output folder cannot be created, or this process may not write in it."""
+
+
+def folder_problem(path: str | os.PathLike) -> str | None:
+    """Why ``path`` cannot be a folder this process writes in, or None if it can.
+
+    Read before any work, so that a run stops at once instead of after hours (or with a
+    traceback from the first ``mkdir``): a file at ``path``, a file among its parents, or no
+    permission to write in it or in its nearest existing parent (``os.access``: a read-only
+    mount counts; a process with root's rights may pass where a plain user would not). Reads
+    only: nothing is created. The phrase follows the path in a message.
+    """
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            return "is a file, not a folder"
+        return None if os.access(path, os.W_OK | os.X_OK) else "is a folder you may not write in"
+    parent = path.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"cannot be created: {parent} is a file"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"cannot be created: you may not write in {parent}"
+    return None
+
+
 def _state(path: Path) -> dict | None:
     """What identifies a written output: a folder, or a file's size and modification time."""
     try:
@@ -197,8 +229,11 @@ class OutputFolder:
         return state is not None and self._record().get(name) == state
 
     def __enter__(self) -> OutputFolder:
-        if self.path.exists() and not self.path.is_dir():
-            raise OutputExistsError(f"{self.flag} {self.path} is a file, not a folder")
+        problem = folder_problem(self.path)
+        if problem is not None:
+            error = OutputExistsError if self.path.exists() and not self.path.is_dir() \
+                else FolderNotWritableError
+            raise error(f"{self.flag} {self.path} {problem}")
         if not self.overwrite:
             theirs = [n for n in self.names if (self.path / n).exists() and not self.ours(n)]
             if theirs:

@@ -60,6 +60,7 @@ __all__ = [
     "ConfigError",
     "validate_config",
     "check_workdir",
+    "check_workdir_folder",
     "check_devices",
     "MODEL_FIELDS",
     "DATA_FIELDS",
@@ -206,15 +207,26 @@ def check_devices(config: ml_collections.ConfigDict) -> Mesh:
     return mesh
 
 
+def check_workdir_folder(workdir: str | os.PathLike) -> None:
+    """Refuse, before any work, a workdir that cannot be a folder this run writes in: a file,
+    a file among its parents, no permission (``rp_jax.files.folder_problem``).
+
+    Raises ``WorkdirMismatchError``.
+    """
+    problem = files.folder_problem(workdir)
+    if problem is not None:
+        raise WorkdirMismatchError(f"workdir {workdir} {problem}; give --workdir a folder "
+                                   "you may write in (it is created if absent)")
+
+
 def check_workdir(workdir: str | os.PathLike, config: ml_collections.ConfigDict) -> None:
-    """Refuse, before any work, a workdir that is a file or holds a run ``config`` cannot resume.
+    """Refuse, before any work, a workdir that cannot be written (``check_workdir_folder``) or
+    holds a run ``config`` cannot resume.
 
     Raises ``WorkdirMismatchError`` (see ``_check_same_config``).
     """
     workdir = Path(workdir)
-    if workdir.exists() and not workdir.is_dir():
-        raise WorkdirMismatchError(f"workdir {workdir} is a file, not a folder; "
-                                   "give --workdir a folder (it is created if absent)")
+    check_workdir_folder(workdir)
     if workdir.is_dir():
         trained = any(_has_checkpoint(workdir / d)
                       for d in (checkpoints.CHECKPOINTS_DIR, checkpoints.BEST_DIR))

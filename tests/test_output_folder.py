@@ -2,6 +2,7 @@
 leaves nothing of itself (issue 27, findings 3 and 8)."""
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -55,4 +56,31 @@ def test_out_that_is_a_file(tmp_path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(files.OutputExistsError, match="is a file"), \
             files.OutputFolder(tmp_path / "f", ["a"]):
+        pass
+
+
+def test_folder_problem_names_why_a_folder_cannot_be_written(tmp_path, monkeypatch):
+    (tmp_path / "notes").write_text("x")
+    assert files.folder_problem(tmp_path) is None
+    assert files.folder_problem(tmp_path / "new" / "deeper") is None  # created when written
+    assert files.folder_problem(tmp_path / "notes") == "is a file, not a folder"
+    assert files.folder_problem(tmp_path / "notes" / "run" / "x") == (
+        f"cannot be created: {tmp_path / 'notes'} is a file")
+    assert not list(tmp_path.glob("new"))  # it only reads
+    # No permission (a plain user's view; the suite may run with root's rights, which
+    # os.access answers as allowed, so the answer is given here).
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: Path(p) != locked and real(p, mode))
+    assert files.folder_problem(locked) == "is a folder you may not write in"
+    assert files.folder_problem(locked / "run") == (
+        f"cannot be created: you may not write in {locked}")
+
+
+def test_out_that_cannot_be_created(tmp_path):
+    (tmp_path / "notes").write_text("x")
+    with pytest.raises(files.FolderNotWritableError, match=r"--out .*notes/out cannot be "
+                       r"created: .*notes is a file"), \
+            files.OutputFolder(tmp_path / "notes" / "out", ["a"]):
         pass

@@ -127,9 +127,8 @@ def validate(config: ml_collections.ConfigDict, workdir=None) -> None:
 
     m = config.map
     workdir = None if workdir is None else Path(workdir)
-    if workdir is not None and workdir.exists() and not workdir.is_dir():
-        raise train.WorkdirMismatchError(f"workdir {workdir} is a file, not a folder; give "
-                                         "--workdir a folder (it is created if absent)")
+    if workdir is not None:
+        train.check_workdir_folder(workdir)
 
     def expect(ok: bool, field: str, expected: str) -> None:
         if not ok:

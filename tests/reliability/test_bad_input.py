@@ -260,6 +260,13 @@ def _workdir_a_file(tmp: Path):
     return _experiment("webcam_clipart")(tmp)
 
 
+def _workdir_under_a_file(name: str):
+    def make(tmp: Path):
+        (tmp / "notes").write_text("my notes")
+        return _experiment(name, workdir="notes/run")(tmp)
+    return make
+
+
 def _workdir_of_another_experiment(tmp: Path):
     from experiments.cmu_seasons.config import get_config
 
@@ -431,6 +438,10 @@ def _cases() -> list[Case]:
              (r"config\.train\.num_epochs=0: expected an integer >= 1",)),
         Case("a workdir that is a file", _workdir_a_file, 2,
              (r"run is a file, not a folder", r"--workdir")),
+        Case("a workdir under a file", _workdir_under_a_file("webcam_clipart"), 2,
+             (r"--workdir .*notes/run cannot be created: .*notes is a file",)),
+        Case("a map-summarization workdir under a file", _workdir_under_a_file(
+            "map_summarization"), 2, (r"--workdir .*notes/run cannot be created: .*notes is",)),
         Case("a workdir of another experiment", _workdir_of_another_experiment, 2,
              (r"dataset: 'cmu_seasons' there, 'webcam_clipart' asked", r"new --workdir")),
         Case("map summarization on an empty --manual-dir",

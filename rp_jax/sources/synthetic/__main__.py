@@ -104,8 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         ):
             print(path)
         return 0
-    if args.out_dir.exists() and not args.out_dir.is_dir():
-        parser.error(f"OUT_DIR {args.out_dir} exists and is not a directory")
+    from rp_jax.files import folder_problem
+
+    problem = folder_problem(args.out_dir)
+    if problem is not None:
+        parser.error(f"OUT_DIR {args.out_dir} {problem}")
     from rp_jax.sources.synthetic.output_folder import OutputFolderError
 
     try:

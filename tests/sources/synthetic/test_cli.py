@@ -40,7 +40,11 @@ def test_out_dir_that_is_a_file(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(["webcam_clipart", str(f), "--size", "tiny"])
     assert exc.value.code == 2
-    assert "not a directory" in capsys.readouterr().err
+    assert f"OUT_DIR {f} is a file, not a folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # before any work, not a traceback at the end
+        cli.main(["webcam_clipart", str(f / "world"), "--size", "tiny"])
+    assert exc.value.code == 2
+    assert f"OUT_DIR {f / 'world'} cannot be created: {f} is a file" in capsys.readouterr().err
 
 
 def test_tiny_run_writes_layout(tmp_path, monkeypatch, capsys):
