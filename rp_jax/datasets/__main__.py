@@ -278,14 +278,16 @@ def main(argv: list[str] | None = None) -> int:
     for noisy in ("absl", "matplotlib"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     from rp_jax.datasets.loading import NotBuiltError
+    from rp_jax.files import folder_problem
     from rp_jax.sources.layout import LayoutError
     from rp_jax.sources.synthetic.output_folder import OutputFolderError
 
     try:
         args.config = _builder_config(f"{parser.prog} {args.command}", args)
-        if args.data_dir is not None and args.data_dir.exists() and not args.data_dir.is_dir():
-            raise _UsageError(f"--data-dir {args.data_dir} is a file; expected the TFDS data "
-                              "directory (a folder, created if absent)")
+        problem = None if args.data_dir is None else folder_problem(args.data_dir)
+        if problem is not None:
+            raise _UsageError(f"--data-dir {args.data_dir} {problem}; expected the TFDS data "
+                              "directory (a folder you may write in, created if absent)")
         command = {"build": _build, "outcomes": _outcomes, "curves": _curves}[args.command]
         return command(args)
     except (_UsageError, NotBuiltError, LayoutError, OutputFolderError) as err:

@@ -242,6 +242,22 @@ def _data_dir_a_file(tmp: Path):
                                             "--data-dir", str(tmp / "tfds")]), [tmp]
 
 
+def _data_dir_under_a_file(tmp: Path):
+    from rp_jax.datasets import __main__ as datasets_cli
+
+    (tmp / "notes").write_text("not a folder")
+    return _exit_status(datasets_cli.main, ["build", "webcam_clipart", "--size", "tiny",
+                                            "--data-dir", str(tmp / "notes" / "tfds")]), [tmp]
+
+
+def _decay_workdir_under_a_file(tmp: Path):
+    from experiments.decay import __main__ as decay_cli
+
+    (tmp / "notes").write_text("not a folder")
+    return _exit_status(decay_cli.main, ["--size", "tiny", "--workdir",
+                                         str(tmp / "notes" / "run")]), [tmp]
+
+
 def _experiment_data_dir_a_file(tmp: Path):
     (tmp / "notes").write_text("not a folder")
     return _experiment("webcam_clipart", "--config.input.data_dir={tmp}/notes")(tmp)
@@ -431,7 +447,11 @@ def _cases() -> list[Case]:
                                                         "--config.train.num_devices=99"), 2,
              (r"config\.train\.num_devices=99 but only 2 local devices",)),
         Case("a --data-dir that is a file", _data_dir_a_file, 2,
-             (r"--data-dir .*tfds is a file; expected the TFDS data directory",)),
+             (r"--data-dir .*tfds is a file, not a folder; expected the TFDS data directory",)),
+        Case("a --data-dir under a file", _data_dir_under_a_file, 2,
+             (r"--data-dir .*notes/tfds cannot be created: .*notes is a file",)),
+        Case("a decay workdir under a file", _decay_workdir_under_a_file, 2,
+             (r"--workdir .*notes/run cannot be created: .*notes is a file",)),
         Case("a TFDS data_dir that is a file", _experiment_data_dir_a_file, 2,
              (r"config\.input\.data_dir='.*notes': expected a folder \(created if absent\)",)),
         Case("the demo with num_epochs=0", _demo("--config.train.num_epochs=0"), 2,
