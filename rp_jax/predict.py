@@ -276,8 +276,8 @@ class Predictor:
             pixels) or floats in [0, 1].
           xy: [N, 2] pixel coordinates (x, y) in [0, W] x [0, H] if ``image_size`` is
             given, else already normalised to [0, 1].
-          times: N datetimes (local wall clock) within the schedule's span, or an [N, d]
-            array of encoded times.
+          times: N datetimes (local wall clock) within the schedule's span, one datetime
+            for all N (the patches of one image), or an [N, d] array of encoded times.
           image_size: (W, H) of the images the keypoints come from.
 
         Returns:
@@ -339,6 +339,8 @@ class Predictor:
                 raise ValueError(f"times must be N datetimes or a numeric [N, d] array, "
                                  f"got dtype {times.dtype}")
             return times.astype(np.float32)
+        if isinstance(times, dt.datetime):  # one image's capture time, for all its points
+            times = [times] * n
         times = list(times)
         bad = [i for i, t in enumerate(times) if not isinstance(t, dt.datetime)]
         if bad:

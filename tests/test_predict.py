@@ -43,6 +43,9 @@ def test_load_and_call(workdir):
     pure = predict.repeatability(rp.params, patches, xy / np.array([640, 480]), feats,
                                  config=rp.config)
     np.testing.assert_allclose(np.asarray(pure), out, atol=1e-5)
+    # One datetime: every point's capture time (the patches of one image).
+    np.testing.assert_allclose(rp(patches, xy, times[2], image_size=(640, 480)),
+                               rp(patches, xy, [times[2]] * 5, image_size=(640, 480)), atol=0)
 
 
 def test_predictors_of_one_model_share_its_program(workdir):
