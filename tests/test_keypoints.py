@@ -148,6 +148,19 @@ def test_help_text_on_every_flag():
     proc = subprocess.run([sys.executable, "-m", "rp_jax.keypoints", "--help"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "--captured" in proc.stdout and "EXIF" in proc.stdout
+    from rp_jax import shipped
+
+    predictor_help = next(a.help for a in keypoints_cli._parser()._actions
+                          if "--predictor" in a.option_strings)
+    assert shipped.names() and all(name in predictor_help for name in shipped.names())
+
+
+def test_a_folder_given_as_an_image_is_named_as_one(model, tmp_path, capsys):
+    (tmp_path / "photos").mkdir()
+    assert keypoints_cli.main([str(tmp_path / "photos"), "--predictor", str(model),
+                               "--out", str(tmp_path / "out")]) == 2
+    assert f"{tmp_path / 'photos'} is a folder: give its images" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 

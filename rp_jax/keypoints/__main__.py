@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rp_jax import command_line, page
+from rp_jax import command_line, page, shipped
 from rp_jax.commands import (
     FALLBACK_MAX_SIZE,
     OVERWRITE_HELP,
@@ -120,6 +120,8 @@ def run(
     if not paths:
         raise InputError("no IMAGE given")
     for p in paths:
+        if p.is_dir():
+            raise InputError(f"{p} is a folder: give its images (e.g. {p / '*.jpg'})")
         if not p.is_file():
             raise InputError(f"{p}: no such image file")
     stems = _output_stems(paths)
@@ -203,8 +205,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--predictor", metavar="MODEL",
                    help="(required) trained predictor: a workdir with config.json, "
                    "schedule.json and checkpoints/ (python -m experiments.webcam_clipart "
-                   "writes one), or a model shipped in the package (webcam_clipart-synthetic, "
-                   "cmu_seasons-synthetic, robotcar-synthetic)")
+                   f"writes one), or a model shipped in the package ({', '.join(shipped.names())})")
     p.add_argument("--captured", type=datetime_flag, metavar="TIME",
                    help='capture time of every IMAGE on its own wall clock, e.g. "2024-06-01 '
                    '09:30"; default: each image\'s EXIF DateTimeOriginal, else its file name '
