@@ -285,7 +285,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args.config = _builder_config(f"{parser.prog} {args.command}", args)
         problem = None if args.data_dir is None else folder_problem(args.data_dir)
-        if problem is not None:
+        if problem is not None and (args.command != "curves" or args.data_dir.is_file()):
+            # build and outcomes write there; curves only reads (a shared, read-only store)
             raise _UsageError(f"--data-dir {args.data_dir} {problem}; expected the TFDS data "
                               "directory (a folder you may write in, created if absent)")
         command = {"build": _build, "outcomes": _outcomes, "curves": _curves}[args.command]

@@ -83,6 +83,23 @@ def test_curves_writes_non_blank_pngs(capsys, data_dir, tmp_path):
     assert values and all(0.0 <= v <= 1.0 for v in values)
 
 
+def test_a_data_dir_one_may_not_write_in_is_read_but_not_built_in(capsys, data_dir, tmp_path,
+                                                                   monkeypatch):
+    """A shared, read-only TFDS store: curves read it; build, which writes there, stops first
+    (os.access answered as for a plain user: the suite may run with root's rights)."""
+    import os
+
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: (Path(p) != data_dir or not mode & os.W_OK)
+                        and real(p, mode))
+    code, _, err = _run(capsys, "curves", "webcam_clipart", "--size", "tiny", "--data-dir",
+                        str(data_dir), "--out", str(tmp_path / "c.png"))
+    assert code == 0, err
+    code, _, err = _run(capsys, "build", "webcam_clipart", "--size", "tiny", "--data-dir",
+                        str(data_dir))
+    assert code == 2 and f"--data-dir {data_dir} is a folder you may not write in" in err
+
+
 def test_bad_arguments_give_clear_messages(capsys, tmp_path):
     # --manual-dir selects the real data; a synthetic size beside it is a contradiction.
     code, _, err = _run(capsys, "build", "robotcar", "--size", "tiny", "--manual-dir",
