@@ -43,7 +43,7 @@ from pathlib import Path
 
 import ml_collections
 
-from rp_jax import command_line, files
+from rp_jax import command_line
 
 SIZES = ("tiny", "small", "full")
 
@@ -289,10 +289,7 @@ def parse_flags(argv: list[str] | None, name: str,
         print(config, end="")  # ConfigDict's YAML, as the Flax examples log it
         raise SystemExit(0)
     workdir = args.workdir or Path("runs") / f"{name}_{size}"
-    problem = files.folder_problem(workdir)  # every experiment: before any work
-    if problem is not None:
-        parser.error(f"--workdir {workdir} {problem}; give a folder you may write in (it is "
-                     "created if absent)")
+    command_line.check_writable_folder(parser, "--workdir", workdir)  # every experiment
     return config, workdir, args
 
 

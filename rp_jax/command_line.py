@@ -37,6 +37,7 @@ __all__ = [
     "add_manual_dir",
     "add_quiet",
     "add_size",
+    "check_writable_folder",
     "deprecated_alias",
     "deprecation_warning",
 ]
@@ -116,3 +117,14 @@ def add_quiet(parser) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="no progress output (off a terminal, progress is one plain line "
                         "per stage or per 10 %%)")
+
+
+def check_writable_folder(parser, flag: str, path) -> None:
+    """Stop through ``parser.error`` (exit 2), before any work, when ``path`` (``--workdir``,
+    ``--out``) cannot be a folder this process writes in (``rp_jax.files.folder_problem``)."""
+    from rp_jax.files import folder_problem
+
+    problem = folder_problem(path)
+    if problem is not None:
+        parser.error(f"{flag} {path} {problem}; give a folder you may write in (it is created "
+                     "if absent)")

@@ -28,7 +28,7 @@ import datetime as dt
 import sys
 
 from experiments.benchmark.run import ALL_STAGES, run_benchmark
-from rp_jax import command_line, files, progress
+from rp_jax import command_line, progress
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,9 +67,7 @@ def main(argv: list[str] | None = None) -> int:
         progress.set_quiet()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
-    if (problem := files.folder_problem(args.out)) is not None:
-        parser.error(f"--out {args.out} {problem}; give a folder you may write in (it is "
-                     "created if absent)")
+    command_line.check_writable_folder(parser, "--out", args.out)
     unknown = [s for s in args.stages if s not in ALL_STAGES]
     if unknown:
         parser.error(f"unknown stage(s) {unknown}; expected some of {list(ALL_STAGES)}")

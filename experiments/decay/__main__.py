@@ -25,7 +25,7 @@ import logging
 import sys
 from pathlib import Path
 
-from rp_jax import command_line, files
+from rp_jax import command_line
 
 DEFAULT_SIZE = "small"
 
@@ -77,9 +77,8 @@ def main(argv: list[str] | None = None) -> int:
                                ("--resamples", args.resamples, 1)):
         if value is not None and value < least:
             parser.error(f"{flag} {value}: expected an integer >= {least}")
-    if args.workdir is not None and (problem := files.folder_problem(args.workdir)):
-        parser.error(f"--workdir {args.workdir} {problem}; give a folder you may write in (it "
-                     "is created if absent)")
+    if args.workdir is not None:
+        command_line.check_writable_folder(parser, "--workdir", args.workdir)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="%(levelname)s %(name)s: %(message)s")
     from experiments.decay.measure import category_markdown, markdown, run
